@@ -1,0 +1,65 @@
+"""smibjax: a differentiable simulator of a single-machine-infinite-bus power system
+with a static var compensator under adaptive (finite-time) synergetic control.
+
+Importing smibjax enables JAX's 64-bit mode: the closed loop is stiff and the finite-time
+law works near phi = 0, where float32 is not enough.
+"""
+
+import jax
+
+jax.config.update("jax_enable_x64", True)
+
+from .closed_loop import ClosedLoop, closed_loop_vector_field, initial_state  # noqa: E402
+from .controller import (  # noqa: E402
+    adaptation_rate,
+    control_law,
+    drift_and_gain,
+    drift_and_gain_closed_form,
+    paper_coordinates,
+    spow,
+)
+from .network import Stage, fault_stage, stage_at  # noqa: E402
+from .parameters import (  # noqa: E402
+    FAULT_NAMES,
+    GAIN_NAMES,
+    PLANT_NAMES,
+    Fault,
+    Gains,
+    InitialEstimates,
+    OperatingPoint,
+    ParameterError,
+    Plant,
+)
+from .plant import electrical_power, plant_vector_field, terminal_voltage  # noqa: E402
+from .simulate import Trajectory, simulate  # noqa: E402
+
+__version__ = "0.1.0"
+
+__all__ = [
+    "ClosedLoop",
+    "Fault",
+    "FAULT_NAMES",
+    "GAIN_NAMES",
+    "Gains",
+    "InitialEstimates",
+    "OperatingPoint",
+    "ParameterError",
+    "PLANT_NAMES",
+    "Plant",
+    "Stage",
+    "Trajectory",
+    "adaptation_rate",
+    "closed_loop_vector_field",
+    "control_law",
+    "drift_and_gain",
+    "drift_and_gain_closed_form",
+    "electrical_power",
+    "fault_stage",
+    "initial_state",
+    "paper_coordinates",
+    "plant_vector_field",
+    "simulate",
+    "spow",
+    "stage_at",
+    "terminal_voltage",
+]

@@ -1,0 +1,39 @@
+"""Validation helpers shared by the parameter modules.
+
+Checks only run on concrete values: inside `jax.jit` or `jax.vmap` the leaves are
+tracers and validation is skipped (it already happened when the concrete values were
+built).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+import jax
+
+
+class ParameterError(ValueError):
+    """A parameter value outside its allowed range. The message is one line that names
+    the value and what is allowed."""
+
+
+def is_concrete(*xs) -> bool:
+    """True when none of `xs` is a JAX tracer."""
+    return not any(isinstance(x, jax.core.Tracer) for x in xs)
+
+
+def _fmt(x) -> str:
+    a = np.asarray(x)
+    if a.ndim == 0:
+        return f"{float(a):g}"
+    return np.array2string(a, precision=6, threshold=6)
+
+
+def require(ok, owner: str, name: str, value, allowed: str) -> None:
+    """Raise `ParameterError` unless `ok` holds everywhere (skipped under tracing)."""
+    if not is_concrete(ok, value):
+        return
+    if not bool(np.all(np.asarray(ok))):
+        raise ParameterError(
+            f"{owner}.{name} = {_fmt(value)} is not allowed: {allowed}"
+        )

@@ -1,0 +1,96 @@
+"""The closed loop: plant + controller + adaptation law as one vector field.
+
+The integrated state is y = (delta, domega, E, B, th1, th2, J_f, J_r), where J_f and
+J_r are the running control-effort integrals of u_f^2 and u_r^2 (after limits).
+"""
+
+from __future__ import annotations
+
+import equinox as eqx
+import jax.numpy as jnp
+from jaxtyping import Array, Bool, Float
+
+from .controller import adaptation_rate, control_law
+from .network import Stage, prefault_stage, stage_at
+from .parameters import Fault, Gains, InitialEstimates, OperatingPoint, Plant
+from .plant import (
+    apply_limits,
+    effective_reactance,
+    equilibrium_state,
+    plant_vector_field,
+)
+
+__all__ = [
+    "ClosedLoop",
+    "initial_state",
+    "closed_loop_vector_field",
+    "healthy",
+    "N_STATE",
+    "N_DYNAMIC",
+]
+
+N_STATE = 8  # delta, domega, E, B, th1, th2, J_f, J_r
+N_DYNAMIC = 6  # the first six enter the error control; the effort integrals do not
+
+# Loss of synchronism is declared (and the run ends as unstable) when delta comes within
+# DELTA_MARGIN rad of 0 or pi, E' falls below E_MIN, or a transfer reactance falls below
+# X_MIN: the control law has 1/sin(delta) and 1/Pe singularities there (MODEL.md
+# section 3) and no trajectory crosses them, so the spec's "delta leaves (0, pi)" is
+# detected a hair before the singularity instead of after it.
+DELTA_MARGIN = 1e-3
+E_MIN = 1e-3
+X_MIN = 1e-3
+
+
+class ClosedLoop(eqx.Module):
+    """Everything the closed-loop vector field needs, as one pytree."""
+
+    gains: Gains
+    fault: Fault
+    plant: Plant
+    op: OperatingPoint
+    oracle: bool = eqx.field(static=True, default=True)
+
+
+def initial_state(
+    op: OperatingPoint, plant: Plant, init: InitialEstimates
+) -> Float[Array, "8"]:
+    """y(0): the operating point, the initial estimates and zero effort."""
+    z0 = equilibrium_state(op, plant)
+    zero = jnp.zeros_like(z0[0])
+    return jnp.concatenate(
+        [z0, jnp.stack([init.th1 + zero, init.th2 + zero]), jnp.stack([zero, zero])]
+    )
+
+
+def closed_loop_vector_field(
+    t: Float[Array, ""], y: Float[Array, "8"], loop: ClosedLoop
+) -> Float[Array, "8"]:
+    """dy/dt: the controller measures z, its inputs pass the plant's limits, the plant
+    runs on the network stage in force at t and the estimates follow eq. (22)."""
+    z, th = y[:4], y[4:6]
+    out = control_law(z, th, loop.gains, loop.plant, loop.op)
+    u_f, u_r = apply_limits(out.u_f, out.u_r, loop.plant)
+    dz = plant_vector_field(
+        z, u_f, u_r, stage_at(t, loop.fault, loop.plant), loop.plant
+    )
+    dth = adaptation_rate(out, th, loop.gains, loop.plant, loop.oracle)
+    return jnp.concatenate([dz, dth, jnp.stack([u_f**2, u_r**2])])
+
+
+def healthy(
+    t: Float[Array, ""], y: Float[Array, "8"], loop: ClosedLoop
+) -> Bool[Array, ""]:
+    """False once the run has lost synchronism or left the model's domain (see
+    `DELTA_MARGIN`), or any state is non-finite."""
+    delta, E, B = y[0], y[2], y[3]
+    stage: Stage = stage_at(t, loop.fault, loop.plant)
+    nominal = prefault_stage(loop.plant)
+    return (
+        jnp.all(jnp.isfinite(y))
+        & (delta > DELTA_MARGIN)
+        & (delta < jnp.pi - DELTA_MARGIN)
+        & (E > E_MIN)
+        & (effective_reactance(B, stage, loop.plant) > X_MIN)
+        & (effective_reactance(B, nominal, loop.plant) > X_MIN)
+    )

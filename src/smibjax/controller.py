@@ -1,0 +1,184 @@
+"""The adaptive synergetic controller in the paper's coordinates (MODEL.md section 2).
+
+One control law covers both controllers of the paper: alpha < 1 is the adaptive
+finite-time synergetic controller (AFTSC, eqs. 21-22), alpha = 1 the adaptive synergetic
+baseline (ASC, eqs. 36-37). The controller sees the measured plant state z through its
+*nominal* (pre-fault) network model; f and g of the affine model dx/dt = f + g u are
+obtained by `jax.jvp` of the coordinate map z -> x along the nominal plant vector field,
+so controller and plant cannot disagree. `drift_and_gain_closed_form` is MODEL.md's
+closed form, kept for the tests.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+from jaxtyping import Array, Float
+
+from .network import prefault_stage
+from .parameters import Gains, OperatingPoint, Plant
+from .plant import plant_vector_field
+
+__all__ = [
+    "spow",
+    "paper_coordinates",
+    "drift_and_gain",
+    "drift_and_gain_closed_form",
+    "ControlOutput",
+    "control_law",
+    "adaptation_rate",
+]
+
+Scalar = Float[Array, ""]
+
+# Below this |y| the derivative of spow is evaluated at |y| = SPOW_DERIVATIVE_FLOOR:
+# a |y|^(a-1) is infinite at y = 0 for a < 1, and reverse-mode gradients would be
+# inf/NaN (MODEL.md section 3). The forward value is exact.
+SPOW_DERIVATIVE_FLOOR = 1e-9
+
+
+@jax.custom_jvp
+def spow(y: Array, a: Array) -> Array:
+    """Signed power sign(y) |y|^a (exact forward value).
+
+    Its derivative in y, a |y|^(a-1), is floored at |y| = `SPOW_DERIVATIVE_FLOOR` so
+    that gradients stay finite for a < 1; the derivative in a is
+    sign(y) |y|^a log|y| (0 at y = 0).
+    """
+    return jnp.sign(y) * jnp.abs(y) ** a
+
+
+@spow.defjvp
+def _spow_jvp(primals, tangents):
+    y, a = primals
+    ty, ta = tangents
+    ay = jnp.abs(y)
+    out = jnp.sign(y) * ay**a
+    dy = a * jnp.maximum(ay, SPOW_DERIVATIVE_FLOOR) ** (a - 1)
+    safe = jnp.where(ay > 0, ay, 1.0)
+    da = jnp.where(ay > 0, out * jnp.log(safe), 0.0)
+    return out, dy * ty + da * ta
+
+
+def paper_coordinates(z: Float[Array, "4"], plant: Plant) -> Float[Array, "4"]:
+    """x = (delta, domega, Pe, Psvc) of the measured state z = (delta, domega, E, B)
+    on the nominal network (X2 = XL, Bf = 0):
+    Pe = E V sin(delta)/Xs and Psvc = Mt Pe with Mt = Xs/(Xs - X1 X2 B) - 1."""
+    delta, domega, E, B = z[0], z[1], z[2], z[3]
+    x2n = prefault_stage(plant).X2
+    xs = plant.X1 + x2n
+    pe = E * plant.V * jnp.sin(delta) / xs
+    mt = xs / (xs - plant.X1 * x2n * B) - 1
+    return jnp.stack([delta, domega, pe, mt * pe])
+
+
+def drift_and_gain(
+    z: Float[Array, "4"], plant: Plant
+) -> tuple[Float[Array, "2"], Float[Array, "2 2"]]:
+    """(f3, f4) and g = [[g31, 0], [g41, g42]] of dx/dt = f(x) + g(x) (u_f/T0, u_r/Tr),
+    by `jax.jvp` of `paper_coordinates` along the nominal plant vector field (u = 0),
+    and along the unit input directions dE/dt = 1 and dB/dt = 1."""
+    nominal = prefault_stage(plant)
+    zero = jnp.zeros_like(z[0])
+    drift = plant_vector_field(z, zero, zero, nominal, plant)
+    basis = jnp.eye(4, dtype=z.dtype)
+    tangents = jnp.stack([drift, basis[2], basis[3]])
+
+    def pushforward(v):
+        return jax.jvp(lambda zz: paper_coordinates(zz, plant)[2:], (z,), (v,))[1]
+
+    out = jax.vmap(pushforward)(tangents)
+    return out[0], out[1:].T
+
+
+def drift_and_gain_closed_form(
+    z: Float[Array, "4"], plant: Plant
+) -> tuple[Float[Array, "2"], Float[Array, "2 2"]]:
+    """MODEL.md's closed forms of (f3, f4) and g (errata applied)."""
+    p = plant
+    x2n = prefault_stage(p).X2
+    xs = p.X1 + x2n
+    xds = p.Xd + p.XT + x2n
+    a = xds / (xs * p.T0)
+    c = (p.Xd - p.Xdp) / (xs * p.T0)
+    x = paper_coordinates(z, p)
+    x1, x2, x3 = x[0], x[1], x[2]
+    B = z[3]
+    f3 = (-a + x2 / jnp.tan(x1)) * x3 + c * p.V**2 * jnp.sin(2 * x1) / (2 * xs)
+    g31 = p.V * jnp.sin(x1) / xs
+    den = xs - p.X1 * x2n * B
+    mt = xs / den - 1
+    nt = -x3 * p.X1 * x2n * xs / den**2
+    f4 = mt * f3 + nt * (B - p.B0) / p.Tr
+    g = jnp.array([[g31, 0.0], [mt * g31, -nt]])
+    return jnp.stack([f3, f4]), g
+
+
+class ControlOutput(NamedTuple):
+    """What the controller computes from one measurement."""
+
+    u_f: Scalar  # field voltage command (pu), before the plant's limits
+    u_r: Scalar  # SVC command (pu), before the plant's limits
+    x: Float[Array, "4"]  # paper coordinates (delta, domega, Pe, Psvc)
+    phi: Float[Array, "2"]  # macro-variables (phi1, phi2), eq. (23)
+
+
+def control_law(
+    z: Float[Array, "4"],
+    th_hat: Float[Array, "2"],
+    gains: Gains,
+    plant: Plant,
+    op: OperatingPoint,
+) -> ControlOutput:
+    """The synergetic control law, eq. (21) (eq. (36) for alpha = 1):
+
+        u_f/T0 = -(b1 f3 + x2 + xdot2_hat - spow(-phi1/T1, alpha)) / (b1 g31)
+        u_r/Tr = -(b2 (f4 + g41 u_f/T0) + x2 + xdot2_hat - spow(-phi2/T2, alpha))
+                 / (b2 g42)
+    with xdot2_hat = (th2 + th1 x2 - x3 - x4)/M, errors e = x - (delta_e, 0, Pm_ref, 0)
+    and macro-variables phi1 = e1 + e2 + b1 e3, phi2 = e1 + e2 + b2 e4.
+    """
+    x = paper_coordinates(z, plant)
+    f, g = drift_and_gain(z, plant)
+    e1 = x[0] - op.delta_e
+    e2 = x[1]
+    e3 = x[2] - op.Pm_ref
+    e4 = x[3]
+    b1, b2, a = gains.beta1, gains.beta2, gains.alpha
+    phi1 = e1 + e2 + b1 * e3
+    phi2 = e1 + e2 + b2 * e4
+    xdot2_hat = (th_hat[1] + th_hat[0] * x[1] - x[2] - x[3]) / plant.M
+    common = x[1] + xdot2_hat
+    v1 = -(b1 * f[0] + common - spow(-phi1 / gains.T1, a)) / (b1 * g[0, 0])
+    v2 = -(b2 * (f[1] + g[1, 0] * v1) + common - spow(-phi2 / gains.T2, a)) / (
+        b2 * g[1, 1]
+    )
+    return ControlOutput(
+        u_f=plant.T0 * v1, u_r=plant.Tr * v2, x=x, phi=jnp.stack([phi1, phi2])
+    )
+
+
+def adaptation_rate(
+    out: ControlOutput,
+    th_hat: Float[Array, "2"],
+    gains: Gains,
+    plant: Plant,
+    oracle: bool = True,
+) -> Float[Array, "2"]:
+    """d th_hat/dt, eq. (22) (eq. (37) for alpha = 1):
+
+        dth1/dt = gamma1 (k1 spow(theta1 - th1, alpha) + x2 (phi1 + phi2)/M)
+        dth2/dt = gamma2 (k2 spow(theta2 - th2, alpha) + (phi1 + phi2)/M)
+    with the true theta = (-D, Pm) in the k-terms (`oracle=True`, the paper); with
+    `oracle=False` the k-terms are dropped (k1 = k2 = 0, realizable adaptation).
+    """
+    s = (out.phi[0] + out.phi[1]) / plant.M
+    a = gains.alpha
+    if oracle:
+        o1 = gains.k1 * spow(-plant.D - th_hat[0], a)
+        o2 = gains.k2 * spow(plant.Pm - th_hat[1], a)
+    else:
+        o1 = o2 = 0.0
+    return jnp.stack([gains.gamma1 * (o1 + out.x[1] * s), gains.gamma2 * (o2 + s)])

@@ -1,0 +1,97 @@
+"""Files: gain tables in, atomic writes out. Nothing here is used by the numerical core."""
+
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+from collections.abc import Callable
+from pathlib import Path
+
+from .parameters import GAIN_NAMES, ParameterError
+
+try:  # Python >= 3.11
+    import tomllib
+except ModuleNotFoundError:  # pragma: no cover
+    import tomli as tomllib
+
+__all__ = ["read_table", "read_gains", "atomic_write", "write_text", "write_json"]
+
+
+def read_table(path: str | os.PathLike) -> dict[str, float]:
+    """A flat table of name -> number from a `.json` or `.toml` file."""
+    p = Path(path)
+    if not p.is_file():
+        raise ParameterError(f"file {str(p)!r} does not exist or is not a file")
+    text = p.read_text()
+    try:
+        if p.suffix.lower() == ".toml":
+            data = tomllib.loads(text)
+        else:
+            data = json.loads(text)
+    except (ValueError, tomllib.TOMLDecodeError) as e:
+        raise ParameterError(f"file {str(p)!r} is not valid {p.suffix[1:]}: {e}") from e
+    if not isinstance(data, dict):
+        raise ParameterError(f"file {str(p)!r} must hold a flat table of name = value")
+    out = {}
+    for k, v in data.items():
+        if isinstance(v, bool) or not isinstance(v, (int, float)):
+            raise ParameterError(
+                f"{k} = {v!r} in {str(p)!r} is not allowed: must be a number"
+            )
+        out[str(k)] = float(v)
+    return out
+
+
+def read_gains(path: str | os.PathLike) -> dict[str, float]:
+    """Gain values from a flat JSON/TOML table whose keys are gain names."""
+    table = read_table(path)
+    unknown = sorted(set(table) - set(GAIN_NAMES))
+    if unknown:
+        raise ParameterError(
+            f"unknown gain {unknown[0]!r} in {str(path)!r}: allowed are "
+            f"{', '.join(GAIN_NAMES)}"
+        )
+    return table
+
+
+def atomic_write(path: str | os.PathLike, write: Callable[[str], None]) -> Path:
+    """Call `write(tmp_path)` and move the result onto `path` in one rename, so a reader
+    never sees a half-written file and an existing file survives a crash."""
+    p = Path(path)
+    p.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{p.name}.", suffix=p.suffix, dir=p.parent)
+    os.close(fd)
+    try:
+        write(tmp)
+        os.replace(tmp, p)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+    return p
+
+
+def write_text(path: str | os.PathLike, text: str) -> Path:
+    """Atomically write a text file."""
+
+    def _w(tmp):
+        with open(tmp, "w") as fh:
+            fh.write(text)
+
+    return atomic_write(path, _w)
+
+
+def write_json(path: str | os.PathLike, obj) -> Path:
+    """Atomically write JSON (inf/nan written as null)."""
+
+    def clean(o):
+        if isinstance(o, float) and (o != o or o in (float("inf"), float("-inf"))):
+            return None
+        if isinstance(o, dict):
+            return {k: clean(v) for k, v in o.items()}
+        if isinstance(o, (list, tuple)):
+            return [clean(v) for v in o]
+        return o
+
+    return write_text(path, json.dumps(clean(obj), indent=2) + "\n")

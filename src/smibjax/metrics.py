@@ -1,0 +1,89 @@
+"""Exact performance metrics of a sampled trajectory (MODEL.md section 4).
+
+All functions are pure jnp, so they jit and vmap with `simulate`. Settling times are
+measured from fault inception: the last time after t_fault at which the signal is
+outside its band, located by linear interpolation between samples, minus t_fault
+(0 if the signal never leaves the band, inf if it is still outside at t_end).
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import jax.numpy as jnp
+from jaxtyping import Array, Bool, Float
+
+from .simulate import DEFAULT_DELTA_BAND, Trajectory
+
+__all__ = ["Metrics", "settling_time", "overshoot", "metrics", "DEFAULT_BANDS"]
+
+DEFAULT_BANDS = {"delta": DEFAULT_DELTA_BAND, "Vt": 0.01, "omega": 0.01}
+
+
+def settling_time(
+    t: Float[Array, " n"],
+    signal: Float[Array, " n"],
+    reference: Float[Array, ""],
+    band: float,
+    t_from: Float[Array, ""],
+) -> Float[Array, ""]:
+    """Last time (s, from `t_from`) at which |signal - reference| > band, for t >= t_from.
+
+    The exit from the band is interpolated linearly between the last sample outside
+    and the next one; 0 if the signal is never outside, inf if it is outside at t[-1].
+    """
+    dev = jnp.abs(signal - reference)
+    outside = (dev > band) & (t >= t_from)
+    n = t.shape[0]
+    idx = jnp.arange(n)
+    last = jnp.max(jnp.where(outside, idx, -1))
+    i = jnp.clip(last, 0, n - 2)
+    d0, d1 = dev[i], dev[i + 1]
+    frac = jnp.clip((d0 - band) / jnp.where(d0 > d1, d0 - d1, 1.0), 0.0, 1.0)
+    t_cross = t[i] + frac * (t[i + 1] - t[i])
+    settled = jnp.where(last < 0, 0.0, t_cross - t_from)
+    return jnp.where(last == n - 1, jnp.inf, jnp.maximum(settled, 0.0))
+
+
+def overshoot(traj: Trajectory) -> Float[Array, ""]:
+    """First-swing overshoot: max over t >= t_fault of |delta - delta_e| (rad)."""
+    dev = jnp.abs(traj.delta - traj.delta_e)
+    return jnp.max(jnp.where(traj.t >= traj.t_fault, dev, 0.0))
+
+
+class Metrics(NamedTuple):
+    """Exact metrics of one run (arrays, so they vmap)."""
+
+    stable: Bool[Array, ""]  # no loss of synchronism and delta in band at t_end
+    settling_delta: Float[Array, ""]  # s from t_fault (inf: not settled)
+    settling_Vt: Float[Array, ""]  # s from t_fault
+    settling_omega: Float[Array, ""]  # s from t_fault
+    overshoot: Float[Array, ""]  # rad
+    effort_uf: Float[Array, ""]  # integral of u_f^2 over [0, t_end] (pu^2 s)
+    effort_ur: Float[Array, ""]  # integral of u_r^2 over [0, t_end] (pu^2 s)
+    peak_uf: Float[Array, ""]  # max |u_f| on the samples (pu)
+    peak_ur: Float[Array, ""]  # max |u_r| on the samples (pu)
+    peak_B: Float[Array, ""]  # max |B| on the samples (pu)
+
+
+def metrics(
+    traj: Trajectory,
+    delta_band: float = DEFAULT_BANDS["delta"],
+    Vt_band: float = DEFAULT_BANDS["Vt"],
+    omega_band: float = DEFAULT_BANDS["omega"],
+) -> Metrics:
+    """Exact metrics of a trajectory; bands in rad, pu and rad/s."""
+    t, tf = traj.t, traj.t_fault
+    stable = (~traj.lost_sync) & (jnp.abs(traj.delta[-1] - traj.delta_e) <= delta_band)
+    return Metrics(
+        stable=stable,
+        settling_delta=settling_time(t, traj.delta, traj.delta_e, delta_band, tf),
+        settling_Vt=settling_time(t, traj.Vt, traj.Vt_e, Vt_band, tf),
+        settling_omega=settling_time(t, traj.omega, 0.0, omega_band, tf),
+        overshoot=overshoot(traj),
+        effort_uf=traj.effort[0],
+        effort_ur=traj.effort[1],
+        peak_uf=jnp.max(jnp.abs(traj.u_f)),
+        peak_ur=jnp.max(jnp.abs(traj.u_r)),
+        peak_B=jnp.max(jnp.abs(traj.B)),
+    )

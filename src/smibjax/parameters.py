@@ -1,0 +1,262 @@
+"""Parameter sets of the closed loop, as equinox Modules (pytrees of float arrays).
+
+Every field is converted to a floating-point JAX array when the Module is built, so a
+parameter set can be jitted without recompiling for new values, vmapped (give fields a
+leading batch axis) and differentiated. Values are validated when built from concrete
+numbers (`__check_init__`); a bad value raises `ParameterError` with one line naming the
+value and what is allowed.
+
+Names follow `MODEL.md` (sections 1-2); `Xdp` is the transient reactance X'_d.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from typing import Literal
+
+import equinox as eqx
+import jax.numpy as jnp
+from jaxtyping import Array, Float
+
+from ._validate import ParameterError, require
+
+__all__ = [
+    "Plant",
+    "Gains",
+    "Fault",
+    "OperatingPoint",
+    "InitialEstimates",
+    "ParameterError",
+    "PRESETS",
+    "GAIN_NAMES",
+    "PLANT_NAMES",
+    "FAULT_NAMES",
+]
+
+Scalar = Float[Array, "*batch"]
+
+
+def _f(x) -> Array:
+    return jnp.asarray(x, dtype=float)
+
+
+def _field(default: float):
+    return eqx.field(default=default, converter=_f)
+
+
+class Plant(eqx.Module):
+    """Physical parameters of the SMIB + SVC plant (per unit unless stated).
+
+    Paper defaults (MODEL.md section 1). The input limits default to none (the paper);
+    `Plant.preset("realistic")` bounds u_f to [-5, 5] and u_r to [-1, 1].
+    """
+
+    H: Scalar = _field(5.0)  # inertia constant (s)
+    D: Scalar = _field(0.2)  # damping
+    T0: Scalar = _field(4.0)  # d-axis transient open-circuit time constant T'_0 (s)
+    V: Scalar = _field(1.0)  # infinite-bus voltage
+    Xd: Scalar = _field(1.1)  # d-axis reactance
+    Xdp: Scalar = _field(0.2)  # d-axis transient reactance X'_d
+    XT: Scalar = _field(0.1)  # transformer reactance
+    XL: Scalar = _field(0.2)  # line reactance (two circuits of 2 XL in parallel)
+    Tr: Scalar = _field(1.0)  # SVC time constant (s)
+    Pm: Scalar = _field(1.0)  # true mechanical power
+    f: Scalar = _field(60.0)  # frequency (Hz)
+    B0: Scalar = _field(0.0)  # SVC susceptance reference
+    uf_min: Scalar = _field(-math.inf)  # field-voltage limits applied at the plant
+    uf_max: Scalar = _field(math.inf)
+    ur_min: Scalar = _field(-math.inf)  # SVC-command limits applied at the plant
+    ur_max: Scalar = _field(math.inf)
+
+    def __check_init__(self):
+        o = "Plant"
+        for name in ("H", "T0", "V", "Xdp", "XL", "Tr", "Pm", "f"):
+            v = getattr(self, name)
+            require(v > 0, o, name, v, "must be > 0")
+        for name in ("D", "XT"):
+            v = getattr(self, name)
+            require(v >= 0, o, name, v, "must be >= 0")
+        require(self.Xd > self.Xdp, o, "Xd", self.Xd, f"must be > Xdp = {self.Xdp}")
+        require(
+            self.uf_min < self.uf_max,
+            o,
+            "uf_min",
+            self.uf_min,
+            f"must be < uf_max = {self.uf_max}",
+        )
+        require(
+            self.ur_min < self.ur_max,
+            o,
+            "ur_min",
+            self.ur_min,
+            f"must be < ur_max = {self.ur_max}",
+        )
+
+    @property
+    def ws(self) -> Scalar:
+        """Synchronous speed 2 pi f (rad/s)."""
+        return 2 * jnp.pi * self.f
+
+    @property
+    def M(self) -> Scalar:
+        """Inertia coefficient M = 2H/ws (s^2/rad)."""
+        return 2 * self.H / self.ws
+
+    @property
+    def X1(self) -> Scalar:
+        """Generator-side reactance X'_d + X_T up to the SVC bus."""
+        return self.Xdp + self.XT
+
+    @classmethod
+    def preset(cls, name: Literal["paper", "realistic"] = "paper", **overrides):
+        """The `paper` plant (no input limits) or the `realistic` one (u_f in [-5, 5],
+        u_r in [-1, 1]), with any field overridden by keyword."""
+        if name not in PRESETS:
+            raise ParameterError(
+                f"preset = {name!r} is not allowed: must be one of {sorted(PRESETS)}"
+            )
+        return cls(**{**PRESETS[name], **overrides})
+
+
+PRESETS: dict[str, dict[str, float]] = {
+    "paper": {},
+    "realistic": {"uf_min": -5.0, "uf_max": 5.0, "ur_min": -1.0, "ur_max": 1.0},
+}
+
+
+class Gains(eqx.Module):
+    """Controller gains of the adaptive synergetic law (MODEL.md section 2).
+
+    `alpha = r/p` in (1/2, 1]: alpha < 1 is the finite-time controller (AFTSC, paper
+    alpha = 5/7), alpha = 1 the asymptotic baseline (ASC). Paper defaults; k1, k2 are
+    not given in the paper and default to 1.
+    """
+
+    beta1: Scalar = _field(50.0)  # macro-variable weight of e3 (phi1)
+    beta2: Scalar = _field(50.0)  # macro-variable weight of e4 (phi2)
+    T1: Scalar = _field(0.005)  # phi1 time constant (s)
+    T2: Scalar = _field(1.0)  # phi2 time constant (s)
+    alpha: Scalar = _field(5.0 / 7.0)  # evolution-law power r/p
+    gamma1: Scalar = _field(5.0)  # adaptation gain of th1 (estimate of -D)
+    gamma2: Scalar = _field(5.0)  # adaptation gain of th2 (estimate of Pm)
+    k1: Scalar = _field(1.0)  # oracle term weight of th1
+    k2: Scalar = _field(1.0)  # oracle term weight of th2
+
+    def __check_init__(self):
+        o = "Gains"
+        for name in ("beta1", "beta2"):
+            v = getattr(self, name)
+            require(
+                (v != 0) & jnp.isfinite(v), o, name, v, "must be finite and non-zero"
+            )
+        for name in ("T1", "T2", "gamma1", "gamma2"):
+            v = getattr(self, name)
+            require((v > 0) & jnp.isfinite(v), o, name, v, "must be > 0")
+        for name in ("k1", "k2"):
+            v = getattr(self, name)
+            require((v >= 0) & jnp.isfinite(v), o, name, v, "must be >= 0")
+        require(
+            (self.alpha > 0.5) & (self.alpha <= 1.0),
+            o,
+            "alpha",
+            self.alpha,
+            "must be in (1/2, 1]",
+        )
+
+    @classmethod
+    def paper(cls, controller: Literal["aftsc", "asc"] = "aftsc", **overrides):
+        """The paper's gains for AFTSC (alpha = 5/7) or ASC (alpha = 1)."""
+        if controller not in ("aftsc", "asc"):
+            raise ParameterError(
+                f"controller = {controller!r} is not allowed: must be 'aftsc' or 'asc'"
+            )
+        alpha = 5.0 / 7.0 if controller == "aftsc" else 1.0
+        return cls(**{"alpha": alpha, **overrides})
+
+    def realizable(self) -> Gains:
+        """The same gains with the oracle terms removed (k1 = k2 = 0)."""
+        return eqx.tree_at(lambda g: (g.k1, g.k2), self, (_f(0.0), _f(0.0)))
+
+
+class Fault(eqx.Module):
+    """One fault scenario: a three-phase fault on circuit 1 at fraction `lam` of its
+    length from the SVC bus, through reactance `Xf`, at `t_fault`; circuit 1 is opened at
+    `t_clear` and reclosed at `t_reclose` (all times in s)."""
+
+    t_fault: Scalar = _field(0.5)
+    t_clear: Scalar = _field(0.7)
+    t_reclose: Scalar = _field(2.0)
+    lam: Scalar = _field(0.5)
+    Xf: Scalar = _field(0.0)
+
+    def __check_init__(self):
+        o = "Fault"
+        require(
+            (self.t_fault >= 0) & jnp.isfinite(self.t_fault),
+            o,
+            "t_fault",
+            self.t_fault,
+            "must be >= 0",
+        )
+        require(
+            self.t_clear > self.t_fault,
+            o,
+            "t_clear",
+            self.t_clear,
+            f"must be > t_fault = {self.t_fault}",
+        )
+        require(
+            self.t_reclose >= self.t_clear,
+            o,
+            "t_reclose",
+            self.t_reclose,
+            f"must be >= t_clear = {self.t_clear}",
+        )
+        require(
+            (self.lam > 0) & (self.lam < 1), o, "lam", self.lam, "must be in (0, 1)"
+        )
+        require(
+            (self.Xf >= 0) & jnp.isfinite(self.Xf), o, "Xf", self.Xf, "must be >= 0"
+        )
+
+
+class OperatingPoint(eqx.Module):
+    """The controller's operating point (delta_e in rad, Pm_ref in pu). The plant starts
+    there: delta = delta_e, domega = 0, B = B0, E = Pm_ref Xs / (V sin delta_e)."""
+
+    delta_e: Scalar = _field(0.4964)
+    Pm_ref: Scalar = _field(1.0)
+
+    def __check_init__(self):
+        o = "OperatingPoint"
+        require(
+            (self.delta_e > 0) & (self.delta_e < jnp.pi / 2),
+            o,
+            "delta_e",
+            self.delta_e,
+            "must be in (0, pi/2)",
+        )
+        require(self.Pm_ref > 0, o, "Pm_ref", self.Pm_ref, "must be > 0")
+
+
+class InitialEstimates(eqx.Module):
+    """Initial parameter estimates th_hat(0) = (th1, th2) of theta = (-D, Pm)."""
+
+    th1: Scalar = _field(-0.5)
+    th2: Scalar = _field(0.0)
+
+    def __check_init__(self):
+        o = "InitialEstimates"
+        for name in ("th1", "th2"):
+            v = getattr(self, name)
+            require(jnp.isfinite(v), o, name, v, "must be finite")
+
+
+def _names(cls) -> tuple[str, ...]:
+    return tuple(f.name for f in dataclasses.fields(cls))
+
+
+GAIN_NAMES: tuple[str, ...] = _names(Gains)
+PLANT_NAMES: tuple[str, ...] = _names(Plant)
+FAULT_NAMES: tuple[str, ...] = _names(Fault)

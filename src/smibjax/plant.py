@@ -1,0 +1,89 @@
+"""The SMIB + SVC plant in physical coordinates (MODEL.md section 1).
+
+State z = (delta, domega, E, B): rotor angle (rad), speed deviation (rad/s), transient
+EMF E' (pu) and SVC net susceptance (pu). Inputs u = (u_f, u_r): field voltage and SVC
+command (pu), after the plant's input limits.
+"""
+
+from __future__ import annotations
+
+import jax.numpy as jnp
+from jaxtyping import Array, Float
+
+from .network import Stage, prefault_stage
+from .parameters import OperatingPoint, Plant
+
+__all__ = [
+    "effective_reactance",
+    "electrical_power",
+    "terminal_voltage",
+    "plant_vector_field",
+    "apply_limits",
+    "equilibrium_state",
+]
+
+Scalar = Float[Array, ""]
+State = Float[Array, "4"]
+
+
+def effective_reactance(B: Scalar, stage: Stage, plant: Plant) -> Scalar:
+    """Xs - X1 X2 (B + Bf): the transfer reactance seen by E' (pu), Xs = X1 + X2."""
+    xs = plant.X1 + stage.X2
+    return xs - plant.X1 * stage.X2 * (B + stage.Bf)
+
+
+def electrical_power(
+    delta: Scalar, E: Scalar, B: Scalar, stage: Stage, plant: Plant
+) -> Scalar:
+    """Total electrical power P = E V sin(delta) / (Xs - X1 X2 (B + Bf)) (pu)."""
+    return E * plant.V * jnp.sin(delta) / effective_reactance(B, stage, plant)
+
+
+def terminal_voltage(
+    delta: Scalar, E: Scalar, B: Scalar, stage: Stage, plant: Plant
+) -> Scalar:
+    """SVC-bus voltage magnitude Vt (pu), from the phasor solution of the bus:
+    sqrt((X2 E)^2 + (X1 V)^2 + 2 X1 X2 E V cos delta) / (Xs - X1 X2 (B + Bf))."""
+    x1, x2, v = plant.X1, stage.X2, plant.V
+    num = (x2 * E) ** 2 + (x1 * v) ** 2 + 2 * x1 * x2 * E * v * jnp.cos(delta)
+    return jnp.sqrt(jnp.maximum(num, 0.0)) / effective_reactance(B, stage, plant)
+
+
+def apply_limits(u_f: Scalar, u_r: Scalar, plant: Plant) -> tuple[Scalar, Scalar]:
+    """Clip the inputs to the plant's limits [uf_min, uf_max] and [ur_min, ur_max]."""
+    return (
+        jnp.clip(u_f, plant.uf_min, plant.uf_max),
+        jnp.clip(u_r, plant.ur_min, plant.ur_max),
+    )
+
+
+def plant_vector_field(
+    z: State, u_f: Scalar, u_r: Scalar, stage: Stage, plant: Plant
+) -> State:
+    """dz/dt of the plant on network `stage` (swing equation, flux decay, SVC lag):
+
+        d delta/dt  = domega
+        d domega/dt = (Pm - D domega - P) / M
+        dE/dt       = -Xds/(Xs T0) E + (Xd - X'd)/(Xs T0) V cos(delta) + u_f/T0
+        dB/dt       = (-(B - B0) + u_r) / Tr
+    with Xs = X1 + X2 and Xds = Xd + XT + X2 of the stage.
+    """
+    delta, domega, E, B = z[0], z[1], z[2], z[3]
+    p = plant
+    xs = p.X1 + stage.X2
+    xds = p.Xd + p.XT + stage.X2
+    pe = electrical_power(delta, E, B, stage, p)
+    d_delta = domega
+    d_omega = (p.Pm - p.D * domega - pe) / p.M
+    d_e = (-xds * E + (p.Xd - p.Xdp) * p.V * jnp.cos(delta)) / (xs * p.T0) + u_f / p.T0
+    d_b = (-(B - p.B0) + u_r) / p.Tr
+    return jnp.stack([d_delta, d_omega, d_e, d_b])
+
+
+def equilibrium_state(op: OperatingPoint, plant: Plant) -> State:
+    """The operating point (delta_e, 0, E_e, B0) with E_e = Pm_ref Xs / (V sin delta_e)
+    on the pre-fault network."""
+    xs = plant.X1 + prefault_stage(plant).X2
+    e_e = op.Pm_ref * xs / (plant.V * jnp.sin(op.delta_e))
+    zero = jnp.zeros_like(e_e)
+    return jnp.stack([op.delta_e + zero, zero, e_e, plant.B0 + zero])

@@ -1,0 +1,131 @@
+"""Figures of trajectories (matplotlib, Agg backend, written atomically as PNG)."""
+
+from __future__ import annotations
+
+import os
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+from .io import atomic_write  # noqa: E402
+
+__all__ = ["trajectory_arrays", "plot_trajectory", "plot_figure"]
+
+_STYLES = ["-", ":", "--", "-."]
+
+
+def trajectory_arrays(traj) -> dict[str, np.ndarray]:
+    """The trajectory's signals as NumPy arrays (the npz/CSV/plot layout)."""
+    keys = ("t", "delta", "omega", "E", "B", "Vt", "theta_hat", "phi", "u_f", "u_r")
+    out = {k: np.asarray(getattr(traj, k)) for k in keys}
+    out["stable"] = np.asarray(traj.stable, dtype=bool)
+    out["lost_sync"] = np.asarray(traj.lost_sync, dtype=bool)
+    out["t_stop"] = np.asarray(traj.t_stop, dtype=float)
+    return out
+
+
+def _masked(a: dict, key: str) -> np.ndarray:
+    """Signal with the samples after a loss of synchronism hidden (NaN)."""
+    y = np.array(a[key], dtype=float)
+    if a["lost_sync"]:
+        y[a["t"] > a["t_stop"]] = np.nan
+    return y
+
+
+def _panels(ax, runs: dict[str, dict], key: str, col=None, ylabel="", true=None):
+    for i, (label, a) in enumerate(runs.items()):
+        y = _masked(a, key)
+        y = y if col is None else y[:, col]
+        ax.plot(a["t"], y, _STYLES[i % len(_STYLES)], lw=1.4, label=label)
+        if a["lost_sync"]:
+            j = np.searchsorted(a["t"], a["t_stop"]) - 1
+            ax.plot(a["t"][j], y[j], "x", color=ax.lines[-1].get_color(), ms=8)
+    if true is not None:
+        ax.axhline(true, color="k", ls="--", lw=1, label="true value")
+    ax.set_ylabel(ylabel)
+    ax.grid(alpha=0.3)
+
+
+def _save(fig, path) -> None:
+    atomic_write(path, lambda tmp: fig.savefig(tmp, dpi=110, format="png"))
+    plt.close(fig)
+
+
+def _note_lost(fig, runs):
+    lost = [
+        f"{k}: lost synchronism at t = {a['t_stop']:.3f} s (x)"
+        for k, a in runs.items()
+        if a["lost_sync"]
+    ]
+    if lost:
+        fig.text(0.01, 0.005, "; ".join(lost), fontsize=8, color="firebrick")
+
+
+def plot_figure(
+    kind: str,
+    runs: dict[str, dict],
+    path: str | os.PathLike,
+    title: str,
+    theta_true: tuple[float, float] = (-0.2, 1.0),
+) -> None:
+    """One of the paper's figures for several runs (dict label -> arrays):
+    `states` (Fig. 3: delta, omega, Vt), `estimates` (Fig. 4: th_hat against the true
+    theta), `macro` (Fig. 5: phi1, phi2) or `inputs` (u_f, u_r, B)."""
+    spec = {
+        "states": [
+            ("delta", None, "delta (rad)", None),
+            ("omega", None, "omega - ws (rad/s)", None),
+            ("Vt", None, "Vt (pu)", None),
+        ],
+        "estimates": [
+            ("theta_hat", 0, "th1_hat (-D)", theta_true[0]),
+            ("theta_hat", 1, "th2_hat (Pm)", theta_true[1]),
+        ],
+        "macro": [("phi", 0, "phi1", None), ("phi", 1, "phi2", None)],
+        "inputs": [
+            ("u_f", None, "u_f (pu)", None),
+            ("u_r", None, "u_r (pu)", None),
+            ("B", None, "B (pu)", None),
+        ],
+    }[kind]
+    fig, axes = plt.subplots(
+        len(spec), 1, figsize=(8, 2.3 * len(spec) + 0.6), sharex=True
+    )
+    for ax, (key, col, ylabel, true) in zip(axes, spec, strict=True):
+        _panels(ax, runs, key, col, ylabel, true)
+    axes[0].legend(fontsize=8, loc="best")
+    axes[-1].set_xlabel("t (s)")
+    fig.suptitle(title, fontsize=11)
+    _note_lost(fig, runs)
+    fig.tight_layout(rect=(0, 0.02, 1, 1))
+    _save(fig, path)
+
+
+def plot_trajectory(
+    a: dict, path: str | os.PathLike, title: str, theta_true: tuple[float, float]
+) -> None:
+    """All signals of one run on a 4 x 2 grid."""
+    rows = [
+        ("delta", None, "delta (rad)", None),
+        ("omega", None, "omega (rad/s)", None),
+        ("Vt", None, "Vt (pu)", None),
+        ("E", None, "E' (pu)", None),
+        ("theta_hat", 0, "th1_hat", theta_true[0]),
+        ("theta_hat", 1, "th2_hat", theta_true[1]),
+        ("phi", 0, "phi1", None),
+        ("phi", 1, "phi2", None),
+        ("u_f", None, "u_f (pu)", None),
+        ("u_r", None, "u_r (pu)", None),
+    ]
+    fig, axes = plt.subplots(5, 2, figsize=(11, 11), sharex=True)
+    for ax, (key, col, ylabel, true) in zip(axes.T.ravel(), rows, strict=True):
+        _panels(ax, {"run": a}, key, col, ylabel, true)
+    for ax in axes[-1]:
+        ax.set_xlabel("t (s)")
+    fig.suptitle(title, fontsize=11)
+    _note_lost(fig, {"run": a})
+    fig.tight_layout(rect=(0, 0.02, 1, 1))
+    _save(fig, path)

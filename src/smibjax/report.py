@@ -1,0 +1,68 @@
+"""Text forms of results: the CLI summary, metric tables (plain data, markdown)."""
+
+from __future__ import annotations
+
+import math
+
+from .metrics import Metrics
+
+__all__ = ["metrics_dict", "format_summary", "markdown_table"]
+
+
+def metrics_dict(m: Metrics) -> dict:
+    """Metrics as plain Python values (inf where not settled)."""
+    return {k: (bool(v) if k == "stable" else float(v)) for k, v in m._asdict().items()}
+
+
+def _s(x: float, unit: str = "s") -> str:
+    return "not settled" if math.isinf(x) else f"{x:.3f} {unit}"
+
+
+def format_summary(gains, fault, plant, traj, m: Metrics, args=None) -> str:
+    """A few lines: verdict, settling times, overshoot, effort, solver steps."""
+    d = metrics_dict(m)
+    c = "AFTSC" if float(gains.alpha) < 1 else "ASC"
+    if bool(traj.lost_sync):
+        verdict = f"UNSTABLE: lost synchronism at t = {float(traj.t_stop):.3f} s"
+    elif d["stable"]:
+        verdict = "stable"
+    else:
+        verdict = "UNSTABLE: delta not back in its band at t_end"
+    lines = [
+        f"{c} (alpha = {float(gains.alpha):.4g}, beta = {float(gains.beta1):g}/"
+        f"{float(gains.beta2):g}); fault {float(fault.t_fault):g} s, cleared "
+        f"{float(fault.t_clear):g} s, reclosed {float(fault.t_reclose):g} s, "
+        f"lam = {float(fault.lam):g}, Xf = {float(fault.Xf):g}",
+        f"  result:              {verdict}",
+        f"  settling time delta: {_s(d['settling_delta'])} (band 0.01 rad, from fault)",
+        f"  settling time Vt:    {_s(d['settling_Vt'])} (band 0.01 pu)",
+        f"  settling time omega: {_s(d['settling_omega'])} (band 0.01 rad/s)",
+        f"  first-swing overshoot: {d['overshoot']:.4f} rad",
+        f"  effort: int u_f^2 = {d['effort_uf']:.4g}, int u_r^2 = {d['effort_ur']:.4g}"
+        f" (pu^2 s); peak |u_f| = {d['peak_uf']:.4g}, |u_r| = {d['peak_ur']:.4g}",
+        f"  solver: {int(traj.num_steps)} steps ({int(traj.num_rejected)} rejected)",
+    ]
+    return "\n".join(lines)
+
+
+_COLUMNS = [
+    ("stable", "stable", lambda v: "yes" if v else "**no**"),
+    ("settling_delta", "t_s delta (s)", lambda v: "-" if math.isinf(v) else f"{v:.2f}"),
+    ("settling_Vt", "t_s Vt (s)", lambda v: "-" if math.isinf(v) else f"{v:.2f}"),
+    ("settling_omega", "t_s omega (s)", lambda v: "-" if math.isinf(v) else f"{v:.2f}"),
+    ("overshoot", "overshoot (rad)", lambda v: f"{v:.3f}"),
+    ("effort_uf", "int u_f^2", lambda v: f"{v:.3g}"),
+    ("effort_ur", "int u_r^2", lambda v: f"{v:.3g}"),
+    ("peak_uf", "peak u_f", lambda v: f"{v:.3g}"),
+]
+
+
+def markdown_table(rows: dict[str, dict]) -> str:
+    """A markdown table of metric dicts, one row per labelled run."""
+    head = "| run | " + " | ".join(h for _, h, _ in _COLUMNS) + " |"
+    sep = "|---|" + "---|" * len(_COLUMNS)
+    body = [
+        f"| {label} | " + " | ".join(f(d[k]) for k, _, f in _COLUMNS) + " |"
+        for label, d in rows.items()
+    ]
+    return "\n".join([head, sep, *body])
