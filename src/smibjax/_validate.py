@@ -7,9 +7,8 @@ built).
 
 from __future__ import annotations
 
-import numpy as np
-
 import jax
+import numpy as np
 
 
 class ParameterError(ValueError):

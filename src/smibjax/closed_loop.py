@@ -54,7 +54,7 @@ class ClosedLoop(eqx.Module):
 
 def initial_state(
     op: OperatingPoint, plant: Plant, init: InitialEstimates
-) -> Float[Array, "8"]:
+) -> Float[Array, 8]:
     """y(0): the operating point, the initial estimates and zero effort."""
     z0 = equilibrium_state(op, plant)
     zero = jnp.zeros_like(z0[0])
@@ -64,8 +64,8 @@ def initial_state(
 
 
 def closed_loop_vector_field(
-    t: Float[Array, ""], y: Float[Array, "8"], loop: ClosedLoop
-) -> Float[Array, "8"]:
+    t: Float[Array, ""], y: Float[Array, 8], loop: ClosedLoop
+) -> Float[Array, 8]:
     """dy/dt: the controller measures z, its inputs pass the plant's limits, the plant
     runs on the network stage in force at t and the estimates follow eq. (22)."""
     z, th = y[:4], y[4:6]
@@ -79,7 +79,7 @@ def closed_loop_vector_field(
 
 
 def healthy(
-    t: Float[Array, ""], y: Float[Array, "8"], loop: ClosedLoop
+    t: Float[Array, ""], y: Float[Array, 8], loop: ClosedLoop
 ) -> Bool[Array, ""]:
     """False once the run has lost synchronism or left the model's domain (see
     `DELTA_MARGIN`), or any state is non-finite."""

@@ -62,7 +62,7 @@ def _spow_jvp(primals, tangents):
     return out, dy * ty + da * ta
 
 
-def paper_coordinates(z: Float[Array, "4"], plant: Plant) -> Float[Array, "4"]:
+def paper_coordinates(z: Float[Array, 4], plant: Plant) -> Float[Array, 4]:
     """x = (delta, domega, Pe, Psvc) of the measured state z = (delta, domega, E, B)
     on the nominal network (X2 = XL, Bf = 0):
     Pe = E V sin(delta)/Xs and Psvc = Mt Pe with Mt = Xs/(Xs - X1 X2 B) - 1."""
@@ -75,8 +75,8 @@ def paper_coordinates(z: Float[Array, "4"], plant: Plant) -> Float[Array, "4"]:
 
 
 def drift_and_gain(
-    z: Float[Array, "4"], plant: Plant
-) -> tuple[Float[Array, "2"], Float[Array, "2 2"]]:
+    z: Float[Array, 4], plant: Plant
+) -> tuple[Float[Array, 2], Float[Array, "2 2"]]:
     """(f3, f4) and g = [[g31, 0], [g41, g42]] of dx/dt = f(x) + g(x) (u_f/T0, u_r/Tr),
     by `jax.jvp` of `paper_coordinates` along the nominal plant vector field (u = 0),
     and along the unit input directions dE/dt = 1 and dB/dt = 1."""
@@ -94,8 +94,8 @@ def drift_and_gain(
 
 
 def drift_and_gain_closed_form(
-    z: Float[Array, "4"], plant: Plant
-) -> tuple[Float[Array, "2"], Float[Array, "2 2"]]:
+    z: Float[Array, 4], plant: Plant
+) -> tuple[Float[Array, 2], Float[Array, "2 2"]]:
     """MODEL.md's closed forms of (f3, f4) and g (errata applied)."""
     p = plant
     x2n = prefault_stage(p).X2
@@ -121,13 +121,13 @@ class ControlOutput(NamedTuple):
 
     u_f: Scalar  # field voltage command (pu), before the plant's limits
     u_r: Scalar  # SVC command (pu), before the plant's limits
-    x: Float[Array, "4"]  # paper coordinates (delta, domega, Pe, Psvc)
-    phi: Float[Array, "2"]  # macro-variables (phi1, phi2), eq. (23)
+    x: Float[Array, 4]  # paper coordinates (delta, domega, Pe, Psvc)
+    phi: Float[Array, 2]  # macro-variables (phi1, phi2), eq. (23)
 
 
 def control_law(
-    z: Float[Array, "4"],
-    th_hat: Float[Array, "2"],
+    z: Float[Array, 4],
+    th_hat: Float[Array, 2],
     gains: Gains,
     plant: Plant,
     op: OperatingPoint,
@@ -162,11 +162,11 @@ def control_law(
 
 def adaptation_rate(
     out: ControlOutput,
-    th_hat: Float[Array, "2"],
+    th_hat: Float[Array, 2],
     gains: Gains,
     plant: Plant,
     oracle: bool = True,
-) -> Float[Array, "2"]:
+) -> Float[Array, 2]:
     """d th_hat/dt, eq. (22) (eq. (37) for alpha = 1):
 
         dth1/dt = gamma1 (k1 spow(theta1 - th1, alpha) + x2 (phi1 + phi2)/M)

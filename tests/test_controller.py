@@ -1,0 +1,93 @@
+"""Controller: jvp-derived f and g against MODEL.md's closed forms, the synergetic
+evolution law as an invariant of the closed loop, and the equilibrium."""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import smibjax as sj
+from smibjax.closed_loop import ClosedLoop, closed_loop_vector_field
+
+rng = np.random.default_rng(1)
+
+
+def random_state():
+    return jnp.array(
+        [
+            rng.uniform(0.1, 3.0),
+            rng.uniform(-3, 3),
+            rng.uniform(0.3, 2),
+            rng.uniform(-2, 2),
+        ]
+    )
+
+
+@pytest.mark.parametrize("k", range(20))
+def test_jvp_drift_and_gain_equal_closed_forms(k):
+    plant = sj.Plant(
+        Tr=rng.uniform(0.2, 2), T0=rng.uniform(2, 8), B0=rng.uniform(-0.1, 0.1)
+    )
+    z = random_state()
+    f, g = sj.drift_and_gain(z, plant)
+    fc, gc = sj.drift_and_gain_closed_form(z, plant)
+    np.testing.assert_allclose(np.asarray(f), np.asarray(fc), rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(np.asarray(g), np.asarray(gc), rtol=1e-12, atol=1e-12)
+
+
+def test_spow_values_and_finite_derivative_at_zero():
+    a = 5 / 7
+    assert float(sj.spow(-8.0, a)) == pytest.approx(-(8.0**a))
+    assert float(sj.spow(0.0, a)) == 0.0
+    dy = jax.grad(sj.spow)(0.0, a)
+    assert np.isfinite(float(dy)) and float(dy) > 0
+    assert float(jax.grad(sj.spow)(2.0, a)) == pytest.approx(a * 2.0 ** (a - 1))
+    da = jax.grad(sj.spow, argnums=1)(2.0, a)
+    assert float(da) == pytest.approx(2.0**a * np.log(2.0))
+    assert float(jax.grad(sj.spow, argnums=1)(0.0, a)) == 0.0
+
+
+@pytest.mark.parametrize("alpha", [5 / 7, 1.0])
+@pytest.mark.parametrize("k", range(4))
+def test_macro_variables_follow_the_evolution_law(alpha, k):
+    """With th_hat = theta on the nominal (pre-fault) network and no limits, the control
+    law makes dphi_i/dt = spow(-phi_i/T_i, alpha) exactly (eq. 26)."""
+    gains = sj.Gains(alpha=alpha, beta1=rng.uniform(-5, 5) or 1.0, beta2=-2.0, T2=0.5)
+    plant, op = sj.Plant(), sj.OperatingPoint()
+    loop = ClosedLoop(
+        gains, sj.Fault(t_fault=5.0, t_clear=6.0, t_reclose=7.0), plant, op
+    )
+    y = jnp.concatenate(
+        [
+            random_state() * jnp.array([0.3, 0.3, 1, 0.1])
+            + jnp.array([0.3, 0, 0.5, 0]),
+            jnp.array([-0.2, 1.0, 0.0, 0.0]),
+        ]
+    )
+
+    def phi(yy):
+        return sj.control_law(yy[:4], yy[4:6], gains, plant, op).phi
+
+    dy = closed_loop_vector_field(0.0, y, loop)
+    p, dphi = jax.jvp(phi, (y,), (dy,))
+    expect = jnp.stack(
+        [sj.spow(-p[0] / gains.T1, alpha), sj.spow(-p[1] / gains.T2, alpha)]
+    )
+    np.testing.assert_allclose(
+        np.asarray(dphi), np.asarray(expect), rtol=1e-8, atol=1e-8
+    )
+
+
+@pytest.mark.parametrize("adaptation", [True, False])
+def test_operating_point_is_a_closed_loop_equilibrium(adaptation):
+    plant, op = sj.Plant(), sj.OperatingPoint()
+    init = sj.InitialEstimates(th1=-float(plant.D), th2=float(plant.Pm))
+    y = sj.initial_state(op, plant, init)
+    loop = ClosedLoop(sj.Gains(), sj.Fault(), plant, op, oracle=adaptation)
+    dy = closed_loop_vector_field(0.0, y, loop)
+    np.testing.assert_allclose(np.asarray(dy[:6]), 0.0, atol=1e-10)
+    out = sj.control_law(y[:4], y[4:6], sj.Gains(), plant, op)
+    assert float(out.u_f) == pytest.approx(
+        (1.4 * float(y[2]) - 0.9 * np.cos(0.4964)) / 0.5
+    )
+    assert float(out.u_r) == pytest.approx(0.0, abs=1e-12)

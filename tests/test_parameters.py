@@ -1,0 +1,66 @@
+import jax
+import jax.numpy as jnp
+import pytest
+
+import smibjax as sj
+from smibjax.parameters import GAIN_NAMES, PLANT_NAMES
+
+
+def test_paper_defaults():
+    g = sj.Gains()
+    assert float(g.beta1) == 50 and float(g.T1) == 0.005 and float(g.T2) == 1
+    assert float(g.alpha) == pytest.approx(5 / 7)
+    assert float(sj.Gains.paper("asc").alpha) == 1.0
+    p = sj.Plant()
+    assert float(p.M) == pytest.approx(10 / (2 * jnp.pi * 60))
+    assert float(p.X1) == pytest.approx(0.3)
+    assert float(p.uf_max) == jnp.inf
+    r = sj.Plant.preset("realistic")
+    assert (float(r.uf_min), float(r.uf_max), float(r.ur_min), float(r.ur_max)) == (
+        -5,
+        5,
+        -1,
+        1,
+    )
+    assert float(sj.Gains().realizable().k1) == 0.0
+    assert "alpha" in GAIN_NAMES and "uf_min" in PLANT_NAMES
+
+
+@pytest.mark.parametrize(
+    "build, match",
+    [
+        (lambda: sj.Gains(alpha=1.5), r"Gains.alpha = 1.5 .* \(1/2, 1\]"),
+        (lambda: sj.Gains(alpha=0.5), r"Gains.alpha = 0.5"),
+        (lambda: sj.Gains(T1=-1.0), r"Gains.T1 = -1 .*> 0"),
+        (lambda: sj.Gains(beta2=0.0), r"Gains.beta2 = 0 .*non-zero"),
+        (lambda: sj.Gains(k1=-0.1), r"Gains.k1 = -0.1 .*>= 0"),
+        (
+            lambda: sj.Fault(t_fault=0.5, t_clear=0.4),
+            r"t_clear = 0.4 .*> t_fault = 0.5",
+        ),
+        (lambda: sj.Fault(t_reclose=0.6), r"t_reclose = 0.6 .*>= t_clear = 0.7"),
+        (lambda: sj.Fault(lam=1.0), r"Fault.lam = 1 .*\(0, 1\)"),
+        (lambda: sj.Fault(Xf=-0.01), r"Fault.Xf = -0.01"),
+        (lambda: sj.Plant(T0=-4.0), r"Plant.T0 = -4 .*> 0"),
+        (lambda: sj.Plant(Xd=0.1), r"Plant.Xd = 0.1 .*> Xdp"),
+        (lambda: sj.Plant(uf_min=2.0, uf_max=1.0), r"uf_min = 2"),
+        (lambda: sj.Plant.preset("bogus"), r"preset = 'bogus'"),
+        (lambda: sj.OperatingPoint(delta_e=2.0), r"delta_e = 2"),
+    ],
+)
+def test_bad_values_raise_one_line(build, match):
+    with pytest.raises(sj.ParameterError, match=match) as info:
+        build()
+    assert "\n" not in str(info.value)
+
+
+def test_batched_values_are_validated_elementwise():
+    sj.Gains(alpha=jnp.array([0.6, 1.0]))
+    with pytest.raises(sj.ParameterError, match="alpha"):
+        sj.Gains(alpha=jnp.array([0.6, 1.2]))
+
+
+def test_validation_is_skipped_under_tracing():
+    # inside jit the values are tracers; construction must not fail or recompile checks
+    out = jax.jit(lambda a: sj.Gains(alpha=a).alpha * 2)(0.75)
+    assert float(out) == 1.5
