@@ -18,6 +18,7 @@ from .controller import (  # noqa: E402
     paper_coordinates,
     spow,
 )
+from .metrics import Metrics, metrics  # noqa: E402
 from .network import Stage, fault_stage, stage_at  # noqa: E402
 from .parameters import (  # noqa: E402
     FAULT_NAMES,
@@ -42,6 +43,7 @@ __all__ = [
     "GAIN_NAMES",
     "Gains",
     "InitialEstimates",
+    "Metrics",
     "OperatingPoint",
     "ParameterError",
     "PLANT_NAMES",
@@ -56,6 +58,7 @@ __all__ = [
     "electrical_power",
     "fault_stage",
     "initial_state",
+    "metrics",
     "paper_coordinates",
     "plant_vector_field",
     "simulate",

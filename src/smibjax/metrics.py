@@ -13,7 +13,7 @@ from typing import NamedTuple
 import jax.numpy as jnp
 from jaxtyping import Array, Bool, Float
 
-from .simulate import DEFAULT_DELTA_BAND, Trajectory
+from .simulate import DEFAULT_DELTA_BAND, Trajectory, is_stable
 
 __all__ = ["Metrics", "settling_time", "overshoot", "metrics", "DEFAULT_BANDS"]
 
@@ -74,9 +74,8 @@ def metrics(
 ) -> Metrics:
     """Exact metrics of a trajectory; bands in rad, pu and rad/s."""
     t, tf = traj.t, traj.t_fault
-    stable = (~traj.lost_sync) & (jnp.abs(traj.delta[-1] - traj.delta_e) <= delta_band)
     return Metrics(
-        stable=stable,
+        stable=is_stable(traj.lost_sync, traj.delta[-1], traj.delta_e, delta_band),
         settling_delta=settling_time(t, traj.delta, traj.delta_e, delta_band, tf),
         settling_Vt=settling_time(t, traj.Vt, traj.Vt_e, Vt_band, tf),
         settling_omega=settling_time(t, traj.omega, 0.0, omega_band, tf),

@@ -52,7 +52,7 @@ from .parameters import (
 )
 from .plant import apply_limits, equilibrium_state, terminal_voltage
 
-__all__ = ["Trajectory", "simulate", "DEFAULT_DELTA_BAND"]
+__all__ = ["Trajectory", "simulate", "is_stable", "DEFAULT_DELTA_BAND"]
 
 DEFAULT_DELTA_BAND = 0.01  # rad, MODEL.md section 4
 
@@ -86,6 +86,12 @@ class Trajectory(eqx.Module):
     delta_e: Scalar  # operating-point angle (rad)
     Vt_e: Scalar  # operating-point SVC-bus voltage (pu)
     t_fault: Scalar  # fault inception (s)
+
+
+def is_stable(lost_sync, delta_end, delta_e, delta_band: float = DEFAULT_DELTA_BAND):
+    """MODEL.md section 4: no loss of synchronism, and delta back within `delta_band`
+    (rad) of delta_e at t_end."""
+    return (~lost_sync) & (jnp.abs(delta_end - delta_e) <= delta_band)
 
 
 def _rms_dynamic(y):
@@ -164,7 +170,7 @@ def _simulate(
     z_e = equilibrium_state(op, plant)
     vt_e = terminal_voltage(z_e[0], z_e[2], z_e[3], prefault_stage(plant), plant)
     delta = ys[:, 0]
-    stable = (~lost_sync) & (jnp.abs(delta[-1] - op.delta_e) <= delta_band)
+    stable = is_stable(lost_sync, delta[-1], op.delta_e, delta_band)
     return Trajectory(
         t=ts,
         delta=delta,
