@@ -125,7 +125,7 @@ def build_parameters(controller="aftsc", preset="paper", gains_file=None, sets=N
 
 
 def _cmd_simulate(args) -> int:
-    from .io import atomic_write
+    from .io import write_npz
     from .metrics import metrics
     from .parameters import Fault
     from .plotting import plot_trajectory, trajectory_arrays
@@ -166,12 +166,8 @@ def _cmd_simulate(args) -> int:
         arrays["meta"] = np.array(json.dumps(meta, allow_nan=True))
         out = Path(args.out)
         if out.suffix != ".npz":
-            out = (
-                out.with_suffix(out.suffix + ".npz")
-                if out.suffix
-                else out.with_suffix(".npz")
-            )
-        atomic_write(out, lambda tmp: np.savez(open(tmp, "wb"), **arrays))
+            out = out.with_name(out.name + ".npz")
+        write_npz(out, arrays)
         print(f"wrote {out}")
     if args.plot:
         plot_trajectory(

@@ -15,7 +15,14 @@ try:  # Python >= 3.11
 except ModuleNotFoundError:  # pragma: no cover
     import tomli as tomllib
 
-__all__ = ["read_table", "read_gains", "atomic_write", "write_text", "write_json"]
+__all__ = [
+    "read_table",
+    "read_gains",
+    "atomic_write",
+    "write_text",
+    "write_json",
+    "write_npz",
+]
 
 
 def read_table(path: str | os.PathLike) -> dict[str, float]:
@@ -95,3 +102,14 @@ def write_json(path: str | os.PathLike, obj) -> Path:
         return o
 
     return write_text(path, json.dumps(clean(obj), indent=2) + "\n")
+
+
+def write_npz(path: str | os.PathLike, arrays: dict) -> Path:
+    """Atomically write an uncompressed `.npz` of named arrays."""
+    import numpy as np
+
+    def _w(tmp):
+        with open(tmp, "wb") as fh:
+            np.savez(fh, **arrays)
+
+    return atomic_write(path, _w)

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .io import atomic_write, write_json, write_text
+from .io import atomic_write, write_json, write_npz, write_text
 from .metrics import metrics
 from .parameters import Fault, Gains, Plant
 from .plotting import plot_figure, trajectory_arrays
@@ -75,9 +75,7 @@ def reproduce(out: Path, preset: str = "paper", t_end: float = 10.0) -> dict:
             a = trajectory_arrays(traj)
             runs[label] = a
             stem = f"{set_name}_{ctrl}"
-            atomic_write(
-                out / f"{stem}.npz", lambda tmp, a=a: np.savez(open(tmp, "wb"), **a)
-            )
+            write_npz(out / f"{stem}.npz", a)
             _write_csv(out / f"{stem}.csv", a)
             m = metrics_dict(metrics(traj))
             m["lost_sync_at"] = float(a["t_stop"]) if a["lost_sync"] else None
