@@ -50,6 +50,7 @@ class ClosedLoop(eqx.Module):
     plant: Plant
     op: OperatingPoint
     oracle: bool = eqx.field(static=True, default=True)
+    input_smoothing: float = eqx.field(static=True, default=0.0)
 
 
 def initial_state(
@@ -70,7 +71,7 @@ def closed_loop_vector_field(
     runs on the network stage in force at t and the estimates follow eq. (22)."""
     z, th = y[:4], y[4:6]
     out = control_law(z, th, loop.gains, loop.plant, loop.op)
-    u_f, u_r = apply_limits(out.u_f, out.u_r, loop.plant)
+    u_f, u_r = apply_limits(out.u_f, out.u_r, loop.plant, loop.input_smoothing)
     dz = plant_vector_field(
         z, u_f, u_r, stage_at(t, loop.fault, loop.plant), loop.plant
     )

@@ -7,6 +7,7 @@ command (pu), after the plant's input limits.
 
 from __future__ import annotations
 
+import jax
 import jax.numpy as jnp
 from jaxtyping import Array, Float
 
@@ -49,8 +50,27 @@ def terminal_voltage(
     return jnp.sqrt(jnp.maximum(num, 0.0)) / effective_reactance(B, stage, plant)
 
 
-def apply_limits(u_f: Scalar, u_r: Scalar, plant: Plant) -> tuple[Scalar, Scalar]:
-    """Clip the inputs to the plant's limits [uf_min, uf_max] and [ur_min, ur_max]."""
+def _soft_clip(u: Scalar, lo: Scalar, hi: Scalar, width: float) -> Scalar:
+    """lo + w softplus((u - lo)/w), then hi - w softplus((hi - y)/w): equal to u to
+    within w exp(-distance/w) inside [lo, hi], smooth, and with a non-zero gradient
+    beyond the limits. Infinite limits are no limits."""
+    fin_lo, fin_hi = jnp.isfinite(lo), jnp.isfinite(hi)
+    lo0, hi0 = jnp.where(fin_lo, lo, 0.0), jnp.where(fin_hi, hi, 0.0)
+    y = jnp.where(fin_lo, lo0 + width * jax.nn.softplus((u - lo0) / width), u)
+    return jnp.where(fin_hi, hi0 - width * jax.nn.softplus((hi0 - y) / width), y)
+
+
+def apply_limits(
+    u_f: Scalar, u_r: Scalar, plant: Plant, smoothing: float = 0.0
+) -> tuple[Scalar, Scalar]:
+    """Limit the inputs to [uf_min, uf_max] and [ur_min, ur_max]: a hard clip
+    (`smoothing = 0`, the physical limiter, used for reports) or a soft clip of width
+    `smoothing` (pu) that keeps gradients alive beyond the limits (for losses)."""
+    if smoothing > 0:
+        return (
+            _soft_clip(u_f, plant.uf_min, plant.uf_max, smoothing),
+            _soft_clip(u_r, plant.ur_min, plant.ur_max, smoothing),
+        )
     return (
         jnp.clip(u_f, plant.uf_min, plant.uf_max),
         jnp.clip(u_r, plant.ur_min, plant.ur_max),

@@ -120,8 +120,16 @@ def _simulate(
     dt: float,
     max_steps: int,
     delta_band: float,
+    input_smoothing: float,
 ) -> Trajectory:
-    loop = ClosedLoop(gains=gains, fault=fault, plant=plant, op=op, oracle=oracle)
+    loop = ClosedLoop(
+        gains=gains,
+        fault=fault,
+        plant=plant,
+        op=op,
+        oracle=oracle,
+        input_smoothing=input_smoothing,
+    )
     y0 = initial_state(op, plant, init)
     n = int(round(t_end / dt_save)) + 1
     ts = jnp.asarray(np.linspace(0.0, t_end, n))
@@ -162,7 +170,7 @@ def _simulate(
     def observe(t, y):
         z = y[:4]
         out = control_law(z, y[4:6], gains, plant, op)
-        u_f, u_r = apply_limits(out.u_f, out.u_r, plant)
+        u_f, u_r = apply_limits(out.u_f, out.u_r, plant, input_smoothing)
         vt = terminal_voltage(z[0], z[2], z[3], stage_at(t, fault, plant), plant)
         return vt, out.phi, u_f, u_r
 
@@ -211,6 +219,7 @@ def simulate(
     dt: float = 1e-3,
     max_steps: int | None = None,
     delta_band: float = DEFAULT_DELTA_BAND,
+    input_smoothing: float = 0.0,
 ) -> Trajectory:
     """Simulate the closed loop from the operating point over [0, t_end] (s).
 
@@ -226,6 +235,8 @@ def simulate(
       (constant steps `dt`, s). `method`: the Runge-Kutta method.
     - `max_steps`: solver step budget; a run that exhausts it is reported unstable.
     - `delta_band`: the band (rad) that delta must be back in at t_end to be stable.
+    - `input_smoothing`: 0 for the hard input limiter; > 0 (pu) for a soft one that
+      keeps gradients beyond the limits (for training losses).
 
     **Returns:** a `Trajectory`.
     """
@@ -272,4 +283,5 @@ def simulate(
         dt=float(dt),
         max_steps=int(max_steps),
         delta_band=float(delta_band),
+        input_smoothing=float(input_smoothing),
     )
