@@ -1,0 +1,94 @@
+"""Seeded fault-scenario distributions (for tuning batches and Monte Carlo).
+
+Times are sampled as fault inception, clearing duration and reclosing delay, so that
+t_fault < t_clear <= t_reclose holds by construction.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import jax
+
+from .parameters import Fault, ParameterError
+
+__all__ = ["FaultDistribution", "sample_faults"]
+
+
+@dataclasses.dataclass(frozen=True)
+class FaultDistribution:
+    """Independent uniform ranges [lo, hi] of each scenario variable (s, s, s, -, pu).
+
+    Defaults: t_fault in [0.2, 1.0] s, clearing duration in [0.05, 0.25] s, reclosing
+    1.0-2.5 s after clearing, location in [0.1, 0.9], fault reactance in [0, 0.05].
+    """
+
+    t_fault: tuple[float, float] = (0.2, 1.0)
+    clear_duration: tuple[float, float] = (0.05, 0.25)
+    reclose_delay: tuple[float, float] = (1.0, 2.5)
+    fault_location: tuple[float, float] = (0.1, 0.9)
+    fault_reactance: tuple[float, float] = (0.0, 0.05)
+
+    def __post_init__(self):
+        allowed = {
+            "t_fault": (0.0, float("inf"), "within [0, inf)"),
+            "clear_duration": (0.0, float("inf"), "> 0 (clearing after the fault)"),
+            "reclose_delay": (0.0, float("inf"), ">= 0"),
+            "fault_location": (0.0, 1.0, "within (0, 1)"),
+            "fault_reactance": (0.0, float("inf"), ">= 0"),
+        }
+        for f in dataclasses.fields(self):
+            r = getattr(self, f.name)
+            lo_ok, hi_ok, what = allowed[f.name]
+            try:
+                lo, hi = (float(r[0]), float(r[1])) if len(r) == 2 else (None, None)
+            except (TypeError, ValueError):
+                lo = hi = None
+            if lo is None:
+                raise ParameterError(
+                    f"{f.name} = {r!r} is not allowed: must be a range [lo, hi]"
+                )
+            if not lo <= hi:
+                raise ParameterError(
+                    f"{f.name} = [{lo:g}, {hi:g}] is not allowed: empty range (lo > hi)"
+                )
+            strict = f.name in ("clear_duration", "fault_location")
+            bad_lo = lo <= lo_ok if strict else lo < lo_ok
+            bad_hi = hi >= hi_ok if f.name == "fault_location" else hi > hi_ok
+            if bad_lo or bad_hi:
+                raise ParameterError(
+                    f"{f.name} = [{lo:g}, {hi:g}] is not allowed: must be {what}"
+                )
+            object.__setattr__(self, f.name, (lo, hi))
+
+    @classmethod
+    def from_dict(cls, d: dict) -> FaultDistribution:
+        """From a table of name -> [lo, hi]; unknown names are an error."""
+        names = [f.name for f in dataclasses.fields(cls)]
+        for k in d:
+            if k not in names:
+                raise ParameterError(
+                    f"unknown scenario key {k!r}: allowed are {', '.join(names)}"
+                )
+        return cls(**{k: tuple(v) if isinstance(v, list) else v for k, v in d.items()})
+
+
+def sample_faults(key: jax.Array, n: int, dist: FaultDistribution) -> Fault:
+    """`n` scenarios as one batched `Fault` (leading axis n), reproducible from `key`."""
+    if n <= 0:
+        raise ParameterError(f"n = {n} is not allowed: must be >= 1")
+    ks = jax.random.split(key, 5)
+
+    def u(k, r):
+        return jax.random.uniform(k, (n,), minval=r[0], maxval=r[1], dtype=float)
+
+    tf = u(ks[0], dist.t_fault)
+    tc = tf + u(ks[1], dist.clear_duration)
+    tr = tc + u(ks[2], dist.reclose_delay)
+    return Fault(
+        t_fault=tf,
+        t_clear=tc,
+        t_reclose=tr,
+        lam=u(ks[3], dist.fault_location),
+        Xf=u(ks[4], dist.fault_reactance),
+    )

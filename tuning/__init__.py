@@ -1,0 +1,1 @@
+"""Gain tuning for smibjax: `python -m tuning.optimize`."""

@@ -1,0 +1,124 @@
+"""Tuning configuration: `configs/default.toml` is both the defaults and the schema."""
+
+from __future__ import annotations
+
+import copy
+from pathlib import Path
+
+from smibjax import ParameterError
+
+try:
+    import tomllib
+except ModuleNotFoundError:  # pragma: no cover
+    import tomli as tomllib
+
+CONFIG_DIR = Path(__file__).parent / "configs"
+DEFAULT = CONFIG_DIR / "default.toml"
+
+# Tables whose keys are free (gain names), checked elsewhere.
+_FREE_TABLES = {("gains", "bounds")}
+
+
+def load_toml(path: str | Path) -> dict:
+    p = Path(path)
+    if not p.is_file():
+        raise ParameterError(f"config file {str(p)!r} does not exist")
+    try:
+        return tomllib.loads(p.read_text())
+    except tomllib.TOMLDecodeError as e:
+        raise ParameterError(f"config file {str(p)!r} is not valid TOML: {e}") from e
+
+
+def _merge(base: dict, over: dict, path=()) -> dict:
+    out = copy.deepcopy(base)
+    for k, v in over.items():
+        here = (*path, k)
+        if path in _FREE_TABLES:
+            out[k] = v
+            continue
+        if k not in base:
+            allowed = ", ".join(base)
+            raise ParameterError(
+                f"unknown config key {'.'.join(here)!r}: allowed here are {allowed}"
+            )
+        if isinstance(base[k], dict):
+            if not isinstance(v, dict):
+                raise ParameterError(f"config key {'.'.join(here)!r} must be a table")
+            out[k] = _merge(base[k], v, here) if here not in _FREE_TABLES else dict(v)
+        else:
+            out[k] = v
+    return out
+
+
+def load_config(path: str | Path | None = None) -> dict:
+    """The default configuration, overridden by the file at `path` (if any)."""
+    cfg = load_toml(DEFAULT)
+    if path is not None:
+        cfg = _merge(cfg, load_toml(path))
+    return cfg
+
+
+def check_config(cfg: dict) -> None:
+    """One-line errors for values out of range."""
+
+    def req(ok, key, value, allowed):
+        if not ok:
+            raise ParameterError(f"{key} = {value!r} is not allowed: {allowed}")
+
+    req(
+        cfg["controller"] in ("aftsc", "asc"),
+        "controller",
+        cfg["controller"],
+        "must be aftsc or asc",
+    )
+    req(
+        cfg["preset"] in ("paper", "realistic"),
+        "preset",
+        cfg["preset"],
+        "must be paper or realistic",
+    )
+    req(
+        cfg["adaptation"] in ("oracle", "realizable"),
+        "adaptation",
+        cfg["adaptation"],
+        "must be oracle or realizable",
+    )
+    for key in ("steps", "batch", "seed"):
+        v = cfg[key]
+        req(
+            isinstance(v, int) and not isinstance(v, bool), key, v, "must be an integer"
+        )
+    req(cfg["steps"] >= 0, "steps", cfg["steps"], "must be >= 0")
+    req(cfg["batch"] >= 1, "batch", cfg["batch"], "must be >= 1")
+    v = cfg["validation"]
+    req(isinstance(v["n"], int) and v["n"] >= 1, "validation.n", v["n"], "must be >= 1")
+    req(
+        isinstance(v["every"], int) and v["every"] >= 1,
+        "validation.every",
+        v["every"],
+        "must be >= 1",
+    )
+    t = cfg["train"]
+    req(t["dt"] > 0, "train.dt", t["dt"], "must be > 0")
+    req(t["t_end"] > 0 and v["t_end"] > 0, "t_end", t["t_end"], "must be > 0")
+    req(
+        t["input_smoothing"] >= 0,
+        "train.input_smoothing",
+        t["input_smoothing"],
+        "must be >= 0",
+    )
+    o = cfg["optimizer"]
+    req(
+        o["learning_rate"] > 0,
+        "optimizer.learning_rate",
+        o["learning_rate"],
+        "must be > 0",
+    )
+    lo = cfg["loss"]
+    req(0 <= lo["cvar_q"] < 1, "loss.cvar_q", lo["cvar_q"], "must be in [0, 1)")
+    req(
+        isinstance(cfg["gains"]["freeze"], list),
+        "gains.freeze",
+        cfg["gains"]["freeze"],
+        "must be a list of gain names",
+    )

@@ -1,0 +1,340 @@
+"""`python -m tuning.optimize`: tune the controller gains with optax over batches of
+fault scenarios; checkpoints, resume, report.
+
+    python -m tuning.optimize [--config FILE.toml] [--init paper|FILE] [--steps N]
+        [--batch B] [--seed S] [--out DIR] [--resume] [--preset paper|realistic]
+        [--controller aftsc|asc]
+"""
+
+from __future__ import annotations
+
+import os
+
+# One host device per core, before JAX starts its CPU backend.
+if "--xla_force_host_platform_device_count" not in os.environ.get("XLA_FLAGS", ""):
+    os.environ["XLA_FLAGS"] = (
+        os.environ.get("XLA_FLAGS", "")
+        + f" --xla_force_host_platform_device_count={os.cpu_count() or 1}"
+    ).strip()
+
+import argparse  # noqa: E402
+import datetime  # noqa: E402
+import pickle  # noqa: E402
+import sys  # noqa: E402
+import time  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+import jax  # noqa: E402
+import numpy as np  # noqa: E402
+import optax  # noqa: E402
+
+import smibjax as sj  # noqa: E402
+from smibjax.io import atomic_write, read_gains, write_json, write_text  # noqa: E402
+from smibjax.losses import LossWeights  # noqa: E402
+from smibjax.scenarios import FaultDistribution, sample_faults  # noqa: E402
+
+from .config import check_config, load_config  # noqa: E402
+from .params import GainSpace, gains_to_dict  # noqa: E402
+from .train import Setup, make_train_step, make_validate, summarize  # noqa: E402
+
+CHECKPOINT = "checkpoint.pkl"
+TERM_NAMES = ("settling_delta", "settling_Vt", "overshoot", "effort", "divergence")
+
+
+class UsageError(Exception):
+    pass
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message):
+        raise UsageError(f"{message} (see `python -m tuning.optimize --help`)")
+
+
+def parse_args(argv):
+    p = _Parser(prog="python -m tuning.optimize", description=__doc__.splitlines()[0])
+    p.add_argument("--config", help="TOML file overriding configs/default.toml")
+    p.add_argument("--init", help="'paper' or a gains file (JSON/TOML)")
+    p.add_argument("--steps", type=int, help="optimizer steps")
+    p.add_argument("--batch", type=int, help="training scenarios per step")
+    p.add_argument("--seed", type=int, help="seed of the training batches")
+    p.add_argument("--out", help="output folder (default: a new folder under runs/)")
+    p.add_argument(
+        "--resume",
+        action="store_true",
+        help="continue the run in --out from its last checkpoint",
+    )
+    p.add_argument("--preset", choices=["paper", "realistic"])
+    p.add_argument("--controller", choices=["aftsc", "asc"])
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    return p.parse_args(argv)
+
+
+def resolve_config(args) -> dict:
+    cfg = load_config(args.config)
+    for key in ("init", "steps", "batch", "seed", "preset", "controller"):
+        v = getattr(args, key)
+        if v is not None:
+            cfg[key] = v
+    check_config(cfg)
+    return cfg
+
+
+def initial_gains(cfg) -> dict[str, float]:
+    base = gains_to_dict(sj.Gains.paper(cfg["controller"]))
+    if cfg["init"] != "paper":
+        base.update(read_gains(cfg["init"]))
+        sj.Gains(**base)  # validate
+    return base
+
+
+def build(cfg):
+    init = initial_gains(cfg)
+    space = GainSpace.build(init, cfg["gains"]["freeze"], cfg["gains"]["bounds"])
+    lw = cfg["loss"]
+    weights = LossWeights(
+        **{
+            k: float(lw[k])
+            for k in (
+                "settling_delta",
+                "settling_Vt",
+                "overshoot",
+                "effort",
+                "divergence",
+                "delta_band",
+                "Vt_band",
+            )
+        }
+    )
+    setup = Setup(
+        space=space,
+        plant=sj.Plant.preset(cfg["preset"]),
+        weights=weights,
+        adaptation=cfg["adaptation"],
+        train_t_end=float(cfg["train"]["t_end"]),
+        train_dt=float(cfg["train"]["dt"]),
+        input_smoothing=float(cfg["train"]["input_smoothing"]),
+        tail_weight=float(lw["tail_weight"]),
+        cvar_q=float(lw["cvar_q"]),
+        val_t_end=float(cfg["validation"]["t_end"]),
+    )
+    dist = FaultDistribution.from_dict(cfg["scenarios"])
+    opt = optax.chain(
+        optax.zero_nans(),
+        optax.clip_by_global_norm(float(cfg["optimizer"]["clip_norm"])),
+        optax.adam(float(cfg["optimizer"]["learning_rate"])),
+    )
+    return init, space, setup, dist, opt
+
+
+def save_checkpoint(out: Path, state: dict) -> None:
+    blob = {
+        "step": state["step"],
+        "raw": jax.tree_util.tree_map(np.asarray, state["raw"]),
+        "opt_leaves": [
+            np.asarray(x) for x in jax.tree_util.tree_leaves(state["opt_state"])
+        ],
+        "history": state["history"],
+        "validation": state["validation"],
+        "rng": {"seed": state["seed"], "batches": "fold_in(PRNGKey(seed), step)"},
+    }
+    atomic_write(out / CHECKPOINT, lambda tmp: pickle.dump(blob, open(tmp, "wb")))
+
+
+def load_checkpoint(out: Path, opt, raw0) -> dict:
+    path = out / CHECKPOINT
+    if not path.is_file():
+        raise UsageError(
+            f"--resume: no checkpoint in {str(out)!r} ({CHECKPOINT} missing)"
+        )
+    with open(path, "rb") as fh:
+        blob = pickle.load(fh)
+    treedef = jax.tree_util.tree_structure(opt.init(raw0))
+    opt_state = jax.tree_util.tree_unflatten(
+        treedef, [jax.numpy.asarray(x) for x in blob["opt_leaves"]]
+    )
+    raw = jax.tree_util.tree_map(jax.numpy.asarray, blob["raw"])
+    return {
+        "step": blob["step"],
+        "raw": raw,
+        "opt_state": opt_state,
+        "history": blob["history"],
+        "validation": blob["validation"],
+    }
+
+
+def write_history(out: Path, history: list[dict]) -> None:
+    if not history:
+        return
+    cols = list(history[0])
+    lines = [",".join(cols)] + [
+        ",".join("" if r.get(c) is None else f"{r[c]:.10g}" for c in cols)
+        for r in history
+    ]
+    write_text(out / "history.csv", "\n".join(lines) + "\n")
+
+
+def _progress(total, initial, quiet):
+    if quiet:
+        return None
+    try:
+        from tqdm import tqdm
+    except ImportError:  # pragma: no cover
+        return None
+    return tqdm(
+        total=total,
+        initial=initial,
+        desc="tuning",
+        unit="step",
+        dynamic_ncols=True,
+        file=sys.stderr,
+    )
+
+
+def run(
+    cfg: dict,
+    out: Path,
+    resume: bool = False,
+    quiet: bool = False,
+    stop_after: int | None = None,
+) -> dict:
+    """Tune; returns the final state. `stop_after` ends early after that many steps
+    of this call (used by the tests to interrupt a run)."""
+    init, space, setup, dist, opt = build(cfg)
+    raw0 = space.to_raw(init)
+    every = int(cfg["validation"]["every"])
+    steps, batch, seed = int(cfg["steps"]), int(cfg["batch"]), int(cfg["seed"])
+    train_step = make_train_step(setup)
+    validate_fn = make_validate(setup)
+    n_val = int(cfg["validation"]["n"])
+    val_faults = sample_faults(
+        jax.random.PRNGKey(int(cfg["validation"]["seed"])), n_val, dist
+    )
+
+    def validate(raw):
+        m = validate_fn(space.to_gains(raw), val_faults)
+        m = jax.tree_util.tree_map(np.asarray, m)
+        return summarize(m), m
+
+    if resume:
+        state = load_checkpoint(out, opt, raw0)
+    else:
+        state = {
+            "step": 0,
+            "raw": raw0,
+            "opt_state": opt.init(raw0),
+            "history": [],
+            "validation": [],
+        }
+        v0, _ = validate(raw0)
+        state["validation"].append({"step": 0, **v0})
+    state["seed"] = seed
+    key = jax.random.PRNGKey(seed)
+    bar = _progress(steps, state["step"], quiet)
+    done_here = 0
+    while state["step"] < steps:
+        step = state["step"]
+        faults = sample_faults(jax.random.fold_in(key, step), batch, dist)
+        t0 = time.perf_counter()
+        loss, per, terms, stable, grads = train_step(state["raw"], faults)
+        updates, opt_state = opt.update(grads, state["opt_state"], state["raw"])
+        raw = optax.apply_updates(state["raw"], updates)
+        gnorm = float(optax.global_norm(grads))
+        row = {
+            "step": step + 1,
+            "loss": float(loss),
+            "train_stable_fraction": float(np.mean(np.asarray(stable))),
+            **{f"term_{k}": float(np.mean(np.asarray(terms[k]))) for k in TERM_NAMES},
+            "grad_norm": gnorm,
+            "seconds": time.perf_counter() - t0,
+        }
+        state.update(step=step + 1, raw=raw, opt_state=opt_state)
+        state["history"].append(row)
+        if (step + 1) % every == 0 or step + 1 == steps:
+            v, _ = validate(raw)
+            state["validation"].append({"step": step + 1, **v})
+            save_checkpoint(out, state)
+            write_history(out, state["history"])
+        if bar is not None:
+            last = state["validation"][-1]
+            bar.set_postfix(
+                loss=f"{float(loss):.3f}",
+                val_stable=f"{last['stable_fraction']:.2f}",
+                val_ts=f"{last['settling_delta_mean']:.2f}s",
+            )
+            bar.update(1)
+        done_here += 1
+        if stop_after is not None and done_here >= stop_after:
+            break
+    if bar is not None:
+        bar.close()
+    state["space"], state["setup"], state["init"] = space, setup, init
+    state["val_faults"], state["validate"] = val_faults, validate
+    return state
+
+
+def finish(cfg: dict, out: Path, state: dict) -> None:
+    """gains.json, history.csv, report.md and plots."""
+    from .report import write_report
+
+    gains = state["space"].to_gains(state["raw"])
+    write_json(out / "gains.json", gains_to_dict(gains))
+    write_history(out, state["history"])
+    write_report(cfg, out, state)
+
+
+def main(argv=None) -> int:
+    from smibjax.cli import _setup_jax
+
+    try:
+        args = parse_args(argv)
+        cfg = resolve_config(args)
+        if args.out:
+            out = Path(args.out)
+        else:
+            stamp = datetime.datetime.now().strftime("%Y%m%d-%H%M%S")
+            out = Path("runs") / f"tune-{stamp}"
+        if args.resume:
+            if not args.out:
+                raise UsageError("--resume needs --out DIR (the run to continue)")
+            saved = out / "config.json"
+            if not (out / CHECKPOINT).is_file():
+                raise UsageError(f"--resume: no checkpoint in {str(out)!r}")
+            import json
+
+            cfg = {
+                **json.loads(saved.read_text()),
+                **{
+                    k: getattr(args, k)
+                    for k in ("steps",)
+                    if getattr(args, k) is not None
+                },
+            }
+        elif out.exists() and any(out.iterdir()):
+            raise UsageError(
+                f"--out {str(out)!r} already holds files: use --resume to "
+                "continue it or choose another folder"
+            )
+        _setup_jax()
+        build(cfg)  # validate gains, bounds, scenarios before any work
+        out.mkdir(parents=True, exist_ok=True)
+        if not args.resume:
+            write_json(out / "config.json", cfg)
+        t0 = time.perf_counter()
+        state = run(cfg, out, resume=args.resume, quiet=args.quiet)
+        state["wall_seconds"] = time.perf_counter() - t0
+        finish(cfg, out, state)
+        print(
+            f"wrote {out}/gains.json, report.md, history.csv and plots "
+            f"({state['wall_seconds']:.0f} s)"
+        )
+        return 0
+    except (UsageError, sj.ParameterError) as e:
+        print(f"tuning.optimize: error: {e}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("\ntuning.optimize: interrupted; continue with --resume", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

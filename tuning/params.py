@@ -1,0 +1,160 @@
+"""Trainable gains: unconstrained raw parameters <-> legal `Gains`.
+
+| gain | raw parameter | why |
+|---|---|---|
+| beta1, beta2 | kappa_i = 1/beta_i | free in sign: the manifold's dynamics depend on kappa =
+|  |  | 1/beta1 + 1/beta2 (stable iff kappa < 0), so gradient descent moves kappa through 0
+|  |  | (beta through +-inf, where the control law is continuous) from the paper's
+|  |  | beta = 50 (kappa = 0.02) to the stable side |
+| T1, T2, gamma1, gamma2 | log(value) | > 0 |
+| k1, k2 | inverse softplus | >= 0 |
+| alpha | logit((alpha - 1/2) / (1/2)) | in (1/2, 1) (alpha = 1 is frozen) |
+
+A bounded gain [lo, hi] is a sigmoid of its raw parameter between the transformed bounds;
+a frozen gain is not trained.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import jax
+import jax.numpy as jnp
+
+from smibjax import GAIN_NAMES, Gains, ParameterError
+
+KIND = {
+    "beta1": "inverse",
+    "beta2": "inverse",
+    "T1": "log",
+    "T2": "log",
+    "gamma1": "log",
+    "gamma2": "log",
+    "k1": "softplus",
+    "k2": "softplus",
+    "alpha": "alpha",
+}
+_KAPPA_MIN = 1e-12
+
+
+def _fwd(kind, v):
+    """value -> transformed coordinate (before any bound squashing)."""
+    if kind == "inverse":
+        return 1.0 / v
+    if kind == "log":
+        return math.log(v)
+    if kind == "softplus":
+        return v  # linear coordinate; squashed below
+    return (v - 0.5) / 0.5  # alpha: fraction of (1/2, 1]
+
+
+def _inv(kind, c):
+    """transformed coordinate -> value (jnp)."""
+    if kind == "inverse":
+        c = jnp.where(jnp.abs(c) < _KAPPA_MIN, jnp.where(c < 0, -1, 1) * _KAPPA_MIN, c)
+        return 1.0 / c
+    if kind == "log":
+        return jnp.exp(c)
+    if kind == "softplus":
+        return c
+    return 0.5 + 0.5 * c
+
+
+@dataclasses.dataclass(frozen=True)
+class GainSpace:
+    """Which gains train, their bounds (in gain units) and the frozen values."""
+
+    trainable: tuple[str, ...]
+    frozen: dict[str, float]
+    bounds: dict[str, tuple[float, float]]
+
+    @classmethod
+    def build(cls, init: dict[str, float], freeze=(), bounds=None) -> GainSpace:
+        bounds = {k: (float(v[0]), float(v[1])) for k, v in (bounds or {}).items()}
+        for name in list(freeze) + list(bounds):
+            if name not in GAIN_NAMES:
+                raise ParameterError(
+                    f"unknown gain {name!r}: allowed are {', '.join(GAIN_NAMES)}"
+                )
+        for name, (lo, hi) in bounds.items():
+            v = init[name]
+            if not lo < hi:
+                raise ParameterError(f"bound {name} = [{lo:g}, {hi:g}] is empty")
+            if not lo <= v <= hi:
+                raise ParameterError(
+                    f"bound {name} = [{lo:g}, {hi:g}] is not allowed: it excludes the "
+                    f"initial value {name} = {v:g}"
+                )
+            kind = KIND[name]
+            if kind == "inverse" and lo < 0 < hi:
+                raise ParameterError(
+                    f"bound {name} = [{lo:g}, {hi:g}] is not allowed: a beta bound "
+                    "must not contain 0 (leave beta unbounded to let it change sign)"
+                )
+            if kind == "log" and lo <= 0:
+                raise ParameterError(f"bound {name} = [{lo:g}, {hi:g}]: must be > 0")
+            if kind == "softplus" and lo < 0:
+                raise ParameterError(f"bound {name} = [{lo:g}, {hi:g}]: must be >= 0")
+            if kind == "alpha" and not (0.5 < lo and hi <= 1):
+                raise ParameterError(
+                    f"bound {name} = [{lo:g}, {hi:g}]: must lie in (1/2, 1]"
+                )
+        frozen_names = set(freeze) | {
+            n for n in GAIN_NAMES if n == "alpha" and init["alpha"] >= 1.0
+        }
+        trainable = tuple(n for n in GAIN_NAMES if n not in frozen_names)
+        frozen = {n: float(init[n]) for n in GAIN_NAMES if n in frozen_names}
+        return cls(trainable, frozen, bounds)
+
+    def _interval(self, name):
+        """Bounds in the transformed coordinate, or None."""
+        if name not in self.bounds:
+            return None
+        kind = KIND[name]
+        a, b = (_fwd(kind, x) for x in self.bounds[name])
+        return (min(a, b), max(a, b))
+
+    def to_raw(self, values: dict[str, float]) -> dict[str, jax.Array]:
+        """Raw (unconstrained) parameters of the trainable gains."""
+        raw = {}
+        for name in self.trainable:
+            kind = KIND[name]
+            c = _fwd(kind, float(values[name]))
+            iv = self._interval(name)
+            if iv is not None:
+                p = (c - iv[0]) / (iv[1] - iv[0])
+                p = min(max(p, 1e-9), 1 - 1e-9)
+                r = math.log(p / (1 - p))
+            elif kind == "softplus":
+                r = math.log(math.expm1(max(c, 1e-9)))
+            elif kind == "alpha":
+                p = min(max(c, 1e-9), 1 - 1e-9)
+                r = math.log(p / (1 - p))
+            else:
+                r = c
+            raw[name] = jnp.asarray(r, dtype=float)
+        return raw
+
+    def to_gains(self, raw: dict[str, jax.Array]) -> Gains:
+        """Legal `Gains` from raw parameters (jittable, differentiable)."""
+        vals = {}
+        for name in self.trainable:
+            kind, r = KIND[name], raw[name]
+            iv = self._interval(name)
+            if iv is not None:
+                c = iv[0] + (iv[1] - iv[0]) * jax.nn.sigmoid(r)
+            elif kind == "softplus":
+                c = jax.nn.softplus(r)
+            elif kind == "alpha":
+                c = jax.nn.sigmoid(r)
+            else:
+                c = r
+            vals[name] = _inv(kind, c)
+        vals.update(self.frozen)
+        return Gains(**vals)
+
+
+def gains_to_dict(g: Gains) -> dict[str, float]:
+    """The nine gains as plain floats (the gains.json layout)."""
+    return {n: float(getattr(g, n)) for n in GAIN_NAMES}
