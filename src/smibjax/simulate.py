@@ -160,12 +160,15 @@ def _simulate(
         throw=False,
     )
     # SaveAt(ts, t1) stores the grid points reached, then the final state (t_end, or the
-    # time the run stopped on loss of synchronism), then inf padding.
+    # time the run stopped on loss of synchronism), then inf padding. After a stop, the
+    # samples hold the last grid sample reached: the state at the stop itself lies past
+    # the breakdown margin and, on fixed steps, may be far off.
     k = jnp.sum(jnp.isfinite(sol.ts)) - 1
-    y_last, t_stop = sol.ys[k], sol.ts[k]
-    reached = jnp.arange(n) < k
-    ys = jnp.where(reached[:, None], sol.ys[:n], y_last[None, :])
+    t_stop = sol.ts[k]
     lost_sync = sol.result != dfx.RESULTS.successful
+    y_hold = jnp.where(lost_sync, sol.ys[jnp.maximum(k - 1, 0)], sol.ys[k])
+    reached = jnp.arange(n) < k
+    ys = jnp.where(reached[:, None], sol.ys[:n], y_hold[None, :])
 
     def observe(t, y):
         z = y[:4]
@@ -190,7 +193,7 @@ def _simulate(
         phi=phi,
         u_f=u_f,
         u_r=u_r,
-        effort=y_last[6:8],
+        effort=y_hold[6:8],
         stable=stable,
         lost_sync=lost_sync,
         t_stop=t_stop,
