@@ -38,7 +38,14 @@ from .params import GainSpace, gains_to_dict  # noqa: E402
 from .train import Setup, make_train_step, make_validate, summarize  # noqa: E402
 
 CHECKPOINT = "checkpoint.pkl"
-TERM_NAMES = ("settling_delta", "settling_Vt", "overshoot", "effort", "divergence")
+TERM_NAMES = (
+    "settling_delta",
+    "settling_Vt",
+    "overshoot",
+    "effort",
+    "divergence",
+    "margin",
+)
 
 
 class UsageError(Exception):
@@ -92,18 +99,7 @@ def build(cfg):
     space = GainSpace.build(init, cfg["gains"]["freeze"], cfg["gains"]["bounds"])
     lw = cfg["loss"]
     weights = LossWeights(
-        **{
-            k: float(lw[k])
-            for k in (
-                "settling_delta",
-                "settling_Vt",
-                "overshoot",
-                "effort",
-                "divergence",
-                "delta_band",
-                "Vt_band",
-            )
-        }
+        **{k: float(lw[k]) for k in (*TERM_NAMES, "delta_band", "Vt_band")}
     )
     setup = Setup(
         space=space,
@@ -121,9 +117,25 @@ def build(cfg):
     opt = optax.chain(
         optax.zero_nans(),
         optax.clip_by_global_norm(float(cfg["optimizer"]["clip_norm"])),
-        optax.adam(float(cfg["optimizer"]["learning_rate"])),
+        optax.adam(
+            optax.cosine_decay_schedule(
+                float(cfg["optimizer"]["learning_rate"]),
+                decay_steps=max(int(cfg["steps"]), 1),
+                alpha=float(cfg["optimizer"]["final_lr_fraction"]),
+            )
+        ),
     )
     return init, space, setup, dist, opt
+
+
+def _better(a: dict, b: dict) -> bool:
+    """Validation summary a beats b: more stable scenarios, then faster mean settling."""
+
+    def key(v):
+        ts = v["settling_delta_mean"]
+        return (v["stable_fraction"], -(ts if ts == ts else float("inf")))
+
+    return key(a) > key(b)
 
 
 def save_checkpoint(out: Path, state: dict) -> None:
@@ -135,6 +147,10 @@ def save_checkpoint(out: Path, state: dict) -> None:
         ],
         "history": state["history"],
         "validation": state["validation"],
+        "best": {
+            **state["best"],
+            "raw": jax.tree_util.tree_map(np.asarray, state["best"]["raw"]),
+        },
         "rng": {"seed": state["seed"], "batches": "fold_in(PRNGKey(seed), step)"},
     }
     atomic_write(out / CHECKPOINT, lambda tmp: pickle.dump(blob, open(tmp, "wb")))
@@ -159,6 +175,10 @@ def load_checkpoint(out: Path, opt, raw0) -> dict:
         "opt_state": opt_state,
         "history": blob["history"],
         "validation": blob["validation"],
+        "best": {
+            **blob["best"],
+            "raw": jax.tree_util.tree_map(jax.numpy.asarray, blob["best"]["raw"]),
+        },
     }
 
 
@@ -227,6 +247,7 @@ def run(
         }
         v0, _ = validate(raw0)
         state["validation"].append({"step": 0, **v0})
+        state["best"] = {"step": 0, "raw": raw0, "summary": v0}
     state["seed"] = seed
     key = jax.random.PRNGKey(seed)
     bar = _progress(steps, state["step"], quiet)
@@ -235,7 +256,7 @@ def run(
         step = state["step"]
         faults = sample_faults(jax.random.fold_in(key, step), batch, dist)
         t0 = time.perf_counter()
-        loss, per, terms, stable, grads = train_step(state["raw"], faults)
+        loss, per, terms, stable, grads, dropped = train_step(state["raw"], faults)
         updates, opt_state = opt.update(grads, state["opt_state"], state["raw"])
         raw = optax.apply_updates(state["raw"], updates)
         gnorm = float(optax.global_norm(grads))
@@ -245,6 +266,7 @@ def run(
             "train_stable_fraction": float(np.mean(np.asarray(stable))),
             **{f"term_{k}": float(np.mean(np.asarray(terms[k]))) for k in TERM_NAMES},
             "grad_norm": gnorm,
+            "dropped": dropped,
             "seconds": time.perf_counter() - t0,
         }
         state.update(step=step + 1, raw=raw, opt_state=opt_state)
@@ -252,6 +274,8 @@ def run(
         if (step + 1) % every == 0 or step + 1 == steps:
             v, _ = validate(raw)
             state["validation"].append({"step": step + 1, **v})
+            if _better(v, state["best"]["summary"]):
+                state["best"] = {"step": step + 1, "raw": raw, "summary": v}
             save_checkpoint(out, state)
             write_history(out, state["history"])
         if bar is not None:
@@ -276,8 +300,10 @@ def finish(cfg: dict, out: Path, state: dict) -> None:
     """gains.json, history.csv, report.md and plots."""
     from .report import write_report
 
-    gains = state["space"].to_gains(state["raw"])
+    gains = state["space"].to_gains(state["best"]["raw"])
     write_json(out / "gains.json", gains_to_dict(gains))
+    last = state["space"].to_gains(state["raw"])
+    write_json(out / "gains_last.json", gains_to_dict(last))
     write_history(out, state["history"])
     write_report(cfg, out, state)
 

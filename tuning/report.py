@@ -95,9 +95,10 @@ def _fmt(x, unit=""):
 def write_report(cfg: dict, out: Path, state: dict) -> None:
     space, setup = state["space"], state["setup"]
     raw0 = space.to_raw(state["init"])
-    g0, g1 = space.to_gains(raw0), space.to_gains(state["raw"])
+    best = state["best"]
+    g0, g1 = space.to_gains(raw0), space.to_gains(best["raw"])
     v0s, m0 = state["validate"](raw0)
-    v1s, m1 = state["validate"](state["raw"])
+    v1s, m1 = state["validate"](best["raw"])
     plot_history(out, state["history"], state["validation"])
     plot_hist(out, m0, m1)
     # representative scenarios: the paper's fault, the median and worst tuned ones
@@ -148,6 +149,10 @@ def write_report(cfg: dict, out: Path, state: dict) -> None:
         ),
         "",
         "## Exact validation metrics",
+        "",
+        f"`gains.json` holds the gains of the best validation (step {best['step']}: "
+        "most stable scenarios, then fastest mean settling); `gains_last.json` those "
+        "of the last step.",
         "",
         f"{n_val} fixed scenarios (seed {cfg['validation']['seed']}), "
         f"{setup.val_t_end:g} s each, settling from fault inception, band "

@@ -39,7 +39,8 @@ class Setup:
 
 
 def make_train_step(setup: Setup):
-    """(raw, faults) -> (loss, per-scenario losses, terms, stable, grad wrt raw).
+    """(raw, faults) -> (loss, per-scenario losses, terms, stable, grad wrt raw,
+    number of scenarios dropped for a non-finite gradient).
 
     Each device computes per-scenario losses and their gradients for its slice of the
     batch (a vmapped gradient costs one batched reverse pass); the batch aggregate's
@@ -70,8 +71,16 @@ def make_train_step(setup: Setup):
     def step(raw, faults):
         (per, (terms, stable)), grads = device_map(per_scenario, raw, faults)
         loss, weights = jax.value_and_grad(agg)(per)
-        grad = jax.tree_util.tree_map(lambda g: jnp.tensordot(weights, g, 1), grads)
-        return loss, per, terms, stable, grad
+        # A scenario whose gradient is not finite contributes none (counted in the
+        # history as `dropped`; the simulator is built so that this does not happen).
+        finite = jnp.all(
+            jnp.stack([jnp.isfinite(g) for g in jax.tree_util.tree_leaves(grads)]), 0
+        )
+        weights = jnp.where(finite, weights, 0.0)
+        grad = jax.tree_util.tree_map(
+            lambda g: jnp.tensordot(weights, jnp.where(finite, g, 0.0), 1), grads
+        )
+        return loss, per, terms, stable, grad, int(jnp.sum(~finite))
 
     return step
 

@@ -68,15 +68,24 @@ def closed_loop_vector_field(
     t: Float[Array, ""], y: Float[Array, 8], loop: ClosedLoop
 ) -> Float[Array, 8]:
     """dy/dt: the controller measures z, its inputs pass the plant's limits, the plant
-    runs on the network stage in force at t and the estimates follow eq. (22)."""
-    z, th = y[:4], y[4:6]
+    runs on the network stage in force at t and the estimates follow eq. (22).
+
+    Outside the model's domain (see `healthy`: past a loss of synchronism, where the
+    run is stopped anyway) the field is 0, evaluated at a harmless state, so that
+    neither the values nor the derivatives of a step that crosses the boundary can be
+    inf or NaN (a 0 cotangent times an infinite Jacobian is NaN in reverse mode).
+    """
+    ok = healthy(t, y, loop)
+    safe = jnp.where(ok, y, initial_state(loop.op, loop.plant, InitialEstimates()))
+    z, th = safe[:4], safe[4:6]
     out = control_law(z, th, loop.gains, loop.plant, loop.op)
     u_f, u_r = apply_limits(out.u_f, out.u_r, loop.plant, loop.input_smoothing)
     dz = plant_vector_field(
         z, u_f, u_r, stage_at(t, loop.fault, loop.plant), loop.plant
     )
     dth = adaptation_rate(out, th, loop.gains, loop.plant, loop.oracle)
-    return jnp.concatenate([dz, dth, jnp.stack([u_f**2, u_r**2])])
+    dy = jnp.concatenate([dz, dth, jnp.stack([u_f**2, u_r**2])])
+    return jnp.where(ok, dy, 0.0)
 
 
 def healthy(

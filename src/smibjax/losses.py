@@ -19,6 +19,7 @@ __all__ = [
     "soft_overshoot",
     "effort_rate",
     "divergence",
+    "margin",
     "LossWeights",
     "loss_terms",
     "scenario_loss",
@@ -79,6 +80,18 @@ def divergence(traj: Trajectory, scale: float = 0.1) -> Scalar:
     return jnp.mean(jnp.log1p(x * x))
 
 
+def margin(traj: Trajectory, E_floor: float = 0.3, B_ceiling: float = 4.0) -> Scalar:
+    """Mean over the samples of log(1 + softplus) barriers on the way to a breakdown:
+    E' falling towards 0 (below `E_floor`, pu) and |B| rising towards the network
+    singularity (above `B_ceiling`, pu); logarithmic so that a collapsed run stays
+    finite. A run that breaks down holds its last sample for the rest
+    of the horizon, so this term grows with the time lost and its gradient points
+    back from the collapse (the settling surrogate is flat there)."""
+    e = jax.nn.softplus((E_floor - traj.E) / 0.05)
+    b = jax.nn.softplus((_smooth_abs(traj.B) - B_ceiling) / 0.25)
+    return jnp.mean(jnp.log1p(e) + jnp.log1p(b))
+
+
 class LossWeights(eqx.Module):
     """Weights and bands of the named loss terms (static configuration)."""
 
@@ -87,12 +100,13 @@ class LossWeights(eqx.Module):
     overshoot: float = eqx.field(static=True, default=1.0)
     effort: float = eqx.field(static=True, default=0.02)
     divergence: float = eqx.field(static=True, default=1.0)
+    margin: float = eqx.field(static=True, default=1.0)
     delta_band: float = eqx.field(static=True, default=0.01)
     Vt_band: float = eqx.field(static=True, default=0.01)
 
 
 def loss_terms(traj: Trajectory, w: LossWeights) -> dict[str, Scalar]:
-    """The unweighted terms of one scenario (s, s, rad, pu^2, -)."""
+    """The unweighted terms of one scenario (s, s, rad, -, -, -)."""
     return {
         "settling_delta": soft_settling_time(
             traj.t,
@@ -111,6 +125,7 @@ def loss_terms(traj: Trajectory, w: LossWeights) -> dict[str, Scalar]:
         "overshoot": soft_overshoot(traj),
         "effort": effort_rate(traj),
         "divergence": divergence(traj),
+        "margin": margin(traj),
     }
 
 

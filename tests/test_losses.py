@@ -1,0 +1,61 @@
+"""Loss surrogates against the exact metrics they stand for."""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from smibjax.losses import (
+    LossWeights,
+    aggregate,
+    cvar,
+    divergence,
+    effort_rate,
+    loss_terms,
+    soft_overshoot,
+    soft_settling_time,
+)
+from smibjax.metrics import metrics, settling_time
+
+
+def test_soft_settling_time_of_exponential_decay():
+    t = jnp.linspace(0.0, 8.0, 801)
+    for tau, amp in ((0.5, 0.2), (1.2, 0.05), (0.3, 0.5)):
+        sig = jnp.where(t >= 0.4, amp * jnp.exp(-(t - 0.4) / tau), 0.0)
+        exact = tau * np.log(amp / 0.01)
+        soft = soft_settling_time(t, 1.0 + sig, 1.0, 0.01, 0.4)
+        assert float(settling_time(t, 1.0 + sig, 1.0, 0.01, 0.4)) == pytest.approx(
+            exact, abs=1e-3
+        )
+        assert float(soft) == pytest.approx(exact, abs=0.03)
+
+
+def test_surrogates_track_exact_metrics_on_trajectories(jax_runs, paper_run):
+    w = LossWeights()
+    for tr in (jax_runs["aftsc"], jax_runs["asc"]):
+        m, terms = metrics(tr), loss_terms(tr, w)
+        assert float(terms["settling_delta"]) == pytest.approx(
+            float(m.settling_delta), abs=0.05
+        )
+        assert float(terms["settling_Vt"]) == pytest.approx(
+            float(m.settling_Vt), abs=0.05
+        )
+        assert float(terms["overshoot"]) == pytest.approx(float(m.overshoot), abs=0.01)
+        rate = (float(m.effort_uf) + float(m.effort_ur)) / 10.0
+        assert float(effort_rate(tr)) == pytest.approx(np.log1p(rate))
+    # unstable: the settling surrogate saturates at the horizon, divergence is finite
+    terms = loss_terms(paper_run, w)
+    assert float(terms["settling_delta"]) == pytest.approx(10.0 - 0.5, abs=0.02)
+    assert 0 < float(divergence(paper_run)) < 10
+    assert float(soft_overshoot(paper_run)) == pytest.approx(
+        float(metrics(paper_run).overshoot), abs=0.01
+    )
+
+
+def test_cvar_and_aggregate_closed_forms():
+    x = jnp.arange(10.0)  # 0..9
+    assert float(cvar(x, 0.8)) == pytest.approx(8.5)  # mean of the worst 2
+    assert float(cvar(x, 0.0)) == pytest.approx(4.5)
+    assert float(aggregate(x, 0.5, 0.9)) == pytest.approx(4.5 + 0.5 * 9)
+    g = jax.grad(lambda v: aggregate(v, 1.0, 0.8))(x)
+    np.testing.assert_allclose(np.asarray(g), [0.1] * 8 + [0.6, 0.6])

@@ -1,0 +1,161 @@
+"""The tuner: gain transforms, configuration errors, gradients against finite
+differences, resume, and a small end-to-end run."""
+
+import copy
+import json
+import math
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import smibjax as sj
+from smibjax.cli import main as smibjax_main
+from smibjax.scenarios import sample_faults
+from tuning.config import check_config, load_config
+from tuning.optimize import build, main, run
+from tuning.params import GainSpace, gains_to_dict
+from tuning.train import make_train_step
+
+PAPER = gains_to_dict(sj.Gains())
+
+
+def tiny_config(**over):
+    cfg = load_config()
+    cfg.update(steps=4, batch=2, seed=3)
+    cfg["validation"].update(n=4, every=2, t_end=4.0)
+    cfg["train"].update(t_end=4.0)
+    cfg.update(over)
+    check_config(cfg)
+    return cfg
+
+
+def test_gain_space_round_trip_and_sign_crossing():
+    space = GainSpace.build(PAPER, freeze=["k2"], bounds={"T1": [0.002, 1.0]})
+    raw = space.to_raw(PAPER)
+    back = gains_to_dict(space.to_gains(raw))
+    for k, v in PAPER.items():
+        assert back[k] == pytest.approx(v, rel=1e-9)
+    assert "k2" not in raw and float(raw["beta1"]) == pytest.approx(1 / 50)
+    # kappa = 1/beta through zero: beta jumps from +inf to -inf, stays legal
+    g = space.to_gains({**raw, "beta1": jnp.asarray(-0.5)})
+    assert float(g.beta1) == pytest.approx(-2.0)
+    # extreme raw values stay inside the bounds and the legal ranges
+    g = space.to_gains({k: jnp.asarray(-50.0) for k in raw})
+    assert 0.002 <= float(g.T1) and 0.5 < float(g.alpha) and float(g.k1) >= 0
+    g = space.to_gains({k: jnp.asarray(50.0) for k in raw})
+    assert float(g.T1) <= 1.0 and float(g.alpha) <= 1.0
+    # ASC: alpha = 1 is frozen
+    asc = GainSpace.build({**PAPER, "alpha": 1.0})
+    assert "alpha" not in asc.trainable and asc.frozen["alpha"] == 1.0
+
+
+@pytest.mark.parametrize(
+    "change, match",
+    [
+        (lambda c: c.update(batch=0), "batch = 0"),
+        (lambda c: c.update(init="/no/such/gains.json"), "does not exist"),
+        (lambda c: c["gains"]["bounds"].update(T2=[2.0, 5.0]), "excludes the initial"),
+        (
+            lambda c: c["gains"]["bounds"].update(beta1=[-5.0, 5.0]),
+            "must not contain 0",
+        ),
+        (lambda c: c["gains"].update(freeze=["zeta"]), "unknown gain 'zeta'"),
+        (lambda c: c["scenarios"].update(clear_duration=[0.3, 0.1]), "empty range"),
+    ],
+)
+def test_bad_configuration_is_one_clear_error(change, match):
+    cfg = copy.deepcopy(load_config())
+    change(cfg)
+    with pytest.raises(sj.ParameterError, match=match):
+        check_config(cfg)
+        build(cfg)
+
+
+def test_command_line_errors(tmp_path, capsys):
+    bad = tmp_path / "c.toml"
+    bad.write_text("stepz = 3\n")
+    assert main(["--config", str(bad), "--out", str(tmp_path / "r")]) == 2
+    err = capsys.readouterr().err
+    assert "unknown config key 'stepz'" in err and err.count("\n") == 1
+    assert main(["--resume", "--out", str(tmp_path / "empty")]) == 2
+    assert "no checkpoint" in capsys.readouterr().err
+    (tmp_path / "full").mkdir()
+    (tmp_path / "full" / "keep.txt").write_text("mine")
+    assert main(["--out", str(tmp_path / "full"), "--batch", "0"]) == 2
+    assert main(["--out", str(tmp_path / "full")]) == 2
+    assert "already holds files" in capsys.readouterr().err
+    assert (tmp_path / "full" / "keep.txt").read_text() == "mine"
+
+
+@pytest.mark.parametrize(
+    "start",
+    [{}, {"alpha": 1.0}, {"beta1": -1.0, "beta2": -1.0}, {"alpha": 1.0, "beta1": -1.0}],
+    ids=["aftsc-paper", "asc-paper", "aftsc-stable", "asc-stable"],
+)
+def test_training_gradient_matches_finite_differences(start):
+    """The whole batch loss (surrogates, CVaR aggregate, per-device gradients) on the
+    training solver, against central differences in two raw parameters."""
+    cfg = tiny_config()
+    _, _, setup, dist, _ = build(cfg)
+    init = {**PAPER, **start}
+    space = GainSpace.build(init)
+    import dataclasses
+
+    setup = dataclasses.replace(setup, space=space)
+    step = make_train_step(setup)
+    faults = sample_faults(jax.random.PRNGKey(7), 2, dist)
+    raw = space.to_raw(init)
+    _, _, _, _, grad = step(raw, faults)
+    for name, h in (("beta1", 1e-5), ("T2", 1e-5)):
+
+        def f(v, name=name):
+            return float(step({**raw, name: v}, faults)[0])
+
+        fd = (f(raw[name] + h) - f(raw[name] - h)) / (2 * h)
+        assert math.isfinite(float(grad[name]))
+        assert float(grad[name]) == pytest.approx(fd, rel=2e-3, abs=1e-6), name
+
+
+def test_resume_gives_the_same_result_as_an_uninterrupted_run(tmp_path):
+    cfg = tiny_config()
+    full = run(cfg, tmp_path / "a", quiet=True)
+    part = run(cfg, tmp_path / "b", quiet=True, stop_after=2)  # "killed" after step 2
+    assert part["step"] == 2 and (tmp_path / "b" / "checkpoint.pkl").is_file()
+    resumed = run(cfg, tmp_path / "b", resume=True, quiet=True)
+    for k in full["raw"]:
+        assert float(resumed["raw"][k]) == float(full["raw"][k])
+    assert [r["loss"] for r in resumed["history"]] == [
+        r["loss"] for r in full["history"]
+    ]
+
+
+def test_end_to_end_run_writes_outputs_usable_by_simulate(tmp_path, capsys):
+    cfgfile = tmp_path / "tiny.toml"
+    cfgfile.write_text(
+        "steps = 2\nbatch = 2\n[validation]\nn = 4\nevery = 2\nt_end = 4.0\n"
+        "[train]\nt_end = 4.0\n"
+    )
+    out = tmp_path / "run"
+    assert main(["--config", str(cfgfile), "--out", str(out), "--quiet"]) == 0
+    for name in (
+        "gains.json",
+        "history.csv",
+        "report.md",
+        "history.png",
+        "settling_hist.png",
+        "trajectories.png",
+        "checkpoint.pkl",
+    ):
+        assert (out / name).stat().st_size > 0, name
+    gains = json.loads((out / "gains.json").read_text())
+    assert sorted(gains) == sorted(PAPER)
+    report = (out / "report.md").read_text()
+    assert "stable fraction" in report and "fixed grid" in report
+    hist = np.genfromtxt(out / "history.csv", delimiter=",", names=True)
+    assert hist.shape == (2,)
+    assert (
+        smibjax_main(["simulate", "--gains", str(out / "gains.json"), "--t-end", "3"])
+        == 0
+    )
