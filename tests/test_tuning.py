@@ -37,9 +37,9 @@ def test_gain_space_round_trip_and_sign_crossing():
     back = gains_to_dict(space.to_gains(raw))
     for k, v in PAPER.items():
         assert back[k] == pytest.approx(v, rel=1e-9)
-    assert "k2" not in raw and float(raw["beta1"]) == pytest.approx(1 / 50)
+    assert "k2" not in raw and float(raw["beta1"]) == pytest.approx(math.asinh(1 / 50))
     # kappa = 1/beta through zero: beta jumps from +inf to -inf, stays legal
-    g = space.to_gains({**raw, "beta1": jnp.asarray(-0.5)})
+    g = space.to_gains({**raw, "beta1": jnp.asarray(math.asinh(-0.5))})
     assert float(g.beta1) == pytest.approx(-2.0)
     # extreme raw values stay inside the bounds and the legal ranges
     g = space.to_gains({k: jnp.asarray(-50.0) for k in raw})

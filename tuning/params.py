@@ -2,10 +2,11 @@
 
 | gain | raw parameter | why |
 |---|---|---|
-| beta1, beta2 | kappa_i = 1/beta_i | free in sign: the manifold's dynamics depend on kappa =
-|  |  | 1/beta1 + 1/beta2 (stable iff kappa < 0), so gradient descent moves kappa through 0
-|  |  | (beta through +-inf, where the control law is continuous) from the paper's
-|  |  | beta = 50 (kappa = 0.02) to the stable side |
+| beta1, beta2 | asinh(kappa_i), kappa_i = 1/beta_i | free in sign: the manifold's
+|  |  | dynamics depend on kappa = 1/beta1 + 1/beta2 (stable iff kappa < 0), so gradient
+|  |  | descent moves kappa through 0 (beta through +-inf, where the control law is
+|  |  | continuous) from the paper's beta = 50 (kappa = 0.02) to the stable side; asinh
+|  |  | is linear near 0 and logarithmic for the large |kappa| of fast gains |
 | T1, T2, gamma1, gamma2 | log(value) | > 0 |
 | k1, k2 | inverse softplus | >= 0 |
 | alpha | logit((alpha - 1/2) / (1/2)) | in (1/2, 1) (alpha = 1 is frozen) |
@@ -41,7 +42,7 @@ _KAPPA_MIN = 1e-12
 def _fwd(kind, v):
     """value -> transformed coordinate (before any bound squashing)."""
     if kind == "inverse":
-        return 1.0 / v
+        return math.asinh(1.0 / v)
     if kind == "log":
         return math.log(v)
     if kind == "softplus":
@@ -52,8 +53,9 @@ def _fwd(kind, v):
 def _inv(kind, c):
     """transformed coordinate -> value (jnp)."""
     if kind == "inverse":
-        c = jnp.where(jnp.abs(c) < _KAPPA_MIN, jnp.where(c < 0, -1, 1) * _KAPPA_MIN, c)
-        return 1.0 / c
+        k = jnp.sinh(c)
+        k = jnp.where(jnp.abs(k) < _KAPPA_MIN, jnp.where(k < 0, -1, 1) * _KAPPA_MIN, k)
+        return 1.0 / k
     if kind == "log":
         return jnp.exp(c)
     if kind == "softplus":

@@ -85,6 +85,29 @@ def make_train_step(setup: Setup):
     return step
 
 
+def make_loss(setup: Setup):
+    """(raw, faults) -> batch loss, forward only (for gradient-free optimizers)."""
+    s = setup
+
+    def one(raw, f):
+        tr = sj.simulate(
+            s.space.to_gains(raw),
+            f,
+            s.plant,
+            adaptation=s.adaptation,
+            t_end=s.train_t_end,
+            solver="fixed",
+            dt=s.train_dt,
+            input_smoothing=s.input_smoothing,
+        )
+        return scenario_loss(tr, s.weights)
+
+    per_scenario = eqx.filter_jit(jax.vmap(one, in_axes=(None, 0)))
+    return lambda raw, faults: aggregate(
+        device_map(per_scenario, raw, faults), s.tail_weight, s.cvar_q
+    )
+
+
 def make_validate(setup: Setup):
     """(gains, faults) -> exact `Metrics` per scenario (accurate adaptive solver)."""
     s = setup
@@ -116,4 +139,4 @@ def summarize(m) -> dict[str, float]:
     }
 
 
-__all__ = ["Setup", "make_train_step", "make_validate", "summarize"]
+__all__ = ["Setup", "make_train_step", "make_loss", "make_validate", "summarize"]
