@@ -45,6 +45,7 @@ TERM_NAMES = (
     "effort",
     "divergence",
     "margin",
+    "instability",
 )
 
 
@@ -96,7 +97,12 @@ def initial_gains(cfg) -> dict[str, float]:
 
 def build(cfg):
     init = initial_gains(cfg)
-    space = GainSpace.build(init, cfg["gains"]["freeze"], cfg["gains"]["bounds"])
+    space = GainSpace.build(
+        init,
+        cfg["gains"]["freeze"],
+        cfg["gains"]["bounds"],
+        float(cfg["gains"]["beta_abs_min"]),
+    )
     lw = cfg["loss"]
     weights = LossWeights(
         **{k: float(lw[k]) for k in (*TERM_NAMES, "delta_band", "Vt_band")}

@@ -70,10 +70,21 @@ class GainSpace:
     trainable: tuple[str, ...]
     frozen: dict[str, float]
     bounds: dict[str, tuple[float, float]]
+    beta_abs_min: float = 0.0
 
     @classmethod
-    def build(cls, init: dict[str, float], freeze=(), bounds=None) -> GainSpace:
+    def build(
+        cls, init: dict[str, float], freeze=(), bounds=None, beta_abs_min: float = 0.0
+    ) -> GainSpace:
+        """`beta_abs_min` > 0 keeps |beta_i| >= it (kappa_i in [-1/it, 1/it]) while
+        leaving beta free to change sign through +-inf."""
         bounds = {k: (float(v[0]), float(v[1])) for k, v in (bounds or {}).items()}
+        for name in ("beta1", "beta2"):
+            if beta_abs_min > 0 and abs(init[name]) < beta_abs_min:
+                raise ParameterError(
+                    f"{name} = {init[name]:g} is not allowed with beta_abs_min = "
+                    f"{beta_abs_min:g}: |{name}| must be >= it"
+                )
         for name in list(freeze) + list(bounds):
             if name not in GAIN_NAMES:
                 raise ParameterError(
@@ -107,11 +118,14 @@ class GainSpace:
         }
         trainable = tuple(n for n in GAIN_NAMES if n not in frozen_names)
         frozen = {n: float(init[n]) for n in GAIN_NAMES if n in frozen_names}
-        return cls(trainable, frozen, bounds)
+        return cls(trainable, frozen, bounds, float(beta_abs_min))
 
     def _interval(self, name):
         """Bounds in the transformed coordinate, or None."""
         if name not in self.bounds:
+            if KIND[name] == "inverse" and self.beta_abs_min > 0:
+                r = math.asinh(1.0 / self.beta_abs_min)
+                return (-r, r)
             return None
         kind = KIND[name]
         a, b = (_fwd(kind, x) for x in self.bounds[name])

@@ -20,6 +20,7 @@ __all__ = [
     "effort_rate",
     "divergence",
     "margin",
+    "instability",
     "LossWeights",
     "loss_terms",
     "scenario_loss",
@@ -41,6 +42,7 @@ def soft_settling_time(
     band: float,
     t_from,
     width: float | None = None,
+    t_stop=None,
 ) -> Scalar:
     """Smooth settling time (s, from `t_from`) on a uniform grid t.
 
@@ -48,11 +50,14 @@ def soft_settling_time(
     peak deviation D(t) = max_{s >= t} |signal(s) - reference| exceeds the band. This
     is sum_i dt sigmoid((D_i - band) / width) over t_i >= t_from: as width -> 0 it is
     the exact value to within one sample; its gradient lives where D crosses the band.
-    `width` defaults to band / 8.
+    `width` defaults to band / 8. Samples after `t_stop` (a loss of synchronism) count
+    as outside the band: a run that breaks down never settles.
     """
     width = band / 8 if width is None else width
     after = t >= t_from
     dev = jnp.where(after, _smooth_abs(signal - reference), 0.0)
+    if t_stop is not None:
+        dev = jnp.where(t > t_stop, 10 * band, dev)
     remaining = jax.lax.cummax(dev, reverse=True)
     s = jax.nn.sigmoid((remaining - band) / width) * after
     return jnp.sum(s) * (t[1] - t[0])
@@ -92,6 +97,15 @@ def margin(traj: Trajectory, E_floor: float = 0.3, B_ceiling: float = 4.0) -> Sc
     return jnp.mean(jnp.log1p(e) + jnp.log1p(b))
 
 
+def instability(traj: Trajectory) -> Scalar:
+    """1 + the fraction of the horizon lost if the run lost synchronism, else 0.
+    A value, not a gradient (it is piecewise constant): it ranks broken runs last in
+    the batch aggregate and in model selection, while `margin` and `divergence`
+    supply the gradient that leads away from them."""
+    lost = traj.lost_sync.astype(traj.t.dtype)
+    return jax.lax.stop_gradient(lost * (1 + (traj.t[-1] - traj.t_stop) / traj.t[-1]))
+
+
 class LossWeights(eqx.Module):
     """Weights and bands of the named loss terms (static configuration)."""
 
@@ -101,6 +115,7 @@ class LossWeights(eqx.Module):
     effort: float = eqx.field(static=True, default=0.02)
     divergence: float = eqx.field(static=True, default=1.0)
     margin: float = eqx.field(static=True, default=1.0)
+    instability: float = eqx.field(static=True, default=5.0)
     delta_band: float = eqx.field(static=True, default=0.01)
     Vt_band: float = eqx.field(static=True, default=0.01)
 
@@ -126,6 +141,7 @@ def loss_terms(traj: Trajectory, w: LossWeights) -> dict[str, Scalar]:
         "effort": effort_rate(traj),
         "divergence": divergence(traj),
         "margin": margin(traj),
+        "instability": instability(traj),
     }
 
 
