@@ -145,7 +145,7 @@ class GainSpace:
             elif kind == "softplus":
                 r = math.log(math.expm1(max(c, 1e-9)))
             elif kind == "alpha":
-                p = min(max(c, 1e-9), 1 - 1e-9)
+                p = min(max((c - 1e-6) / (1 - 2e-6), 1e-12), 1 - 1e-12)
                 r = math.log(p / (1 - p))
             else:
                 r = c
@@ -162,8 +162,8 @@ class GainSpace:
                 c = iv[0] + (iv[1] - iv[0]) * jax.nn.sigmoid(r)
             elif kind == "softplus":
                 c = jax.nn.softplus(r)
-            elif kind == "alpha":
-                c = jax.nn.sigmoid(r)
+            elif kind == "alpha":  # keep clear of the open end alpha = 1/2
+                c = 1e-6 + (1 - 2e-6) * jax.nn.sigmoid(r)
             else:
                 c = r
             vals[name] = _inv(kind, c)

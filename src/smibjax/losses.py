@@ -71,10 +71,12 @@ def soft_overshoot(traj: Trajectory, temperature: float = 2e-3) -> Scalar:
 
 
 def effort_rate(traj: Trajectory) -> Scalar:
-    """log(1 + mean of u_f^2 + u_r^2 over the horizon (pu^2)): the effort integrals
-    over t_end, compressed so that the huge inputs of a run that loses synchronism do
-    not swamp the other terms."""
-    return jnp.log1p(jnp.maximum(traj.effort[0] + traj.effort[1], 0.0) / traj.t[-1])
+    """log(1 + mean of u_f^2 + u_r^2 over the horizon (pu^2)), and 0 for a run that
+    lost synchronism: the inputs blow up on the way to the breakdown, and their
+    derivatives (1e4 and more) would drown every other term (`instability` prices
+    such runs instead)."""
+    rate = jnp.maximum(traj.effort[0] + traj.effort[1], 0.0) / traj.t[-1]
+    return jnp.where(traj.lost_sync, 0.0, jnp.log1p(rate))
 
 
 def divergence(traj: Trajectory, scale: float = 0.1) -> Scalar:
@@ -98,12 +100,10 @@ def margin(traj: Trajectory, E_floor: float = 0.3, B_ceiling: float = 4.0) -> Sc
 
 
 def instability(traj: Trajectory) -> Scalar:
-    """1 + the fraction of the horizon lost if the run lost synchronism, else 0.
-    A value, not a gradient (it is piecewise constant): it ranks broken runs last in
-    the batch aggregate and in model selection, while `margin` and `divergence`
-    supply the gradient that leads away from them."""
-    lost = traj.lost_sync.astype(traj.t.dtype)
-    return jax.lax.stop_gradient(lost * (1 + (traj.t[-1] - traj.t_stop) / traj.t[-1]))
+    """1 if the run lost synchronism, else 0. A value, not a gradient: it ranks broken
+    runs last in the batch aggregate and in model selection, while `margin` and
+    `divergence` supply the gradient that leads away from them."""
+    return jax.lax.stop_gradient(traj.lost_sync.astype(traj.t.dtype))
 
 
 class LossWeights(eqx.Module):
