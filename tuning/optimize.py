@@ -19,6 +19,7 @@ if "--xla_force_host_platform_device_count" not in os.environ.get("XLA_FLAGS", "
 
 import argparse  # noqa: E402
 import datetime  # noqa: E402
+import json  # noqa: E402
 import pickle  # noqa: E402
 import sys  # noqa: E402
 import time  # noqa: E402
@@ -217,6 +218,20 @@ def _progress(total, initial, quiet):
     )
 
 
+_ENGINES: dict[str, tuple] = {}
+
+
+def _engine(cfg: dict, setup: Setup):
+    """The jitted training step and validation for this configuration, built once per
+    process (a resumed or repeated run reuses the compiled functions)."""
+    key = json.dumps(
+        {k: v for k, v in cfg.items() if k not in ("steps", "seed")}, sort_keys=True
+    )
+    if key not in _ENGINES:
+        _ENGINES[key] = (make_train_step(setup), make_validate(setup))
+    return _ENGINES[key]
+
+
 def run(
     cfg: dict,
     out: Path,
@@ -230,8 +245,7 @@ def run(
     raw0 = space.to_raw(init)
     every = int(cfg["validation"]["every"])
     steps, batch, seed = int(cfg["steps"]), int(cfg["batch"]), int(cfg["seed"])
-    train_step = make_train_step(setup)
-    validate_fn = make_validate(setup)
+    train_step, validate_fn = _engine(cfg, setup)
     n_val = int(cfg["validation"]["n"])
     val_faults = sample_faults(
         jax.random.PRNGKey(int(cfg["validation"]["seed"])), n_val, dist
@@ -334,8 +348,6 @@ def main(argv=None) -> int:
             saved = out / "config.json"
             if not (out / CHECKPOINT).is_file():
                 raise UsageError(f"--resume: no checkpoint in {str(out)!r}")
-            import json
-
             cfg = {
                 **json.loads(saved.read_text()),
                 **{
