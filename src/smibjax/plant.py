@@ -60,16 +60,27 @@ def _soft_clip(u: Scalar, lo: Scalar, hi: Scalar, width: float) -> Scalar:
     return jnp.where(fin_hi, hi0 - width * jax.nn.softplus((hi0 - y) / width), y)
 
 
+GRADIENT_LEAK = 0.05
+
+
+def _leak(u: Scalar, y: Scalar) -> Scalar:
+    """y in the forward pass; dy/du + GRADIENT_LEAK in the backward pass (a
+    straight-through leak: beyond a limit the saturated input still tells the loss
+    which way the command pushes, instead of a gradient of zero)."""
+    return y + GRADIENT_LEAK * (u - jax.lax.stop_gradient(u))
+
+
 def apply_limits(
     u_f: Scalar, u_r: Scalar, plant: Plant, smoothing: float = 0.0
 ) -> tuple[Scalar, Scalar]:
     """Limit the inputs to [uf_min, uf_max] and [ur_min, ur_max]: a hard clip
-    (`smoothing = 0`, the physical limiter, used for reports) or a soft clip of width
-    `smoothing` (pu) that keeps gradients alive beyond the limits (for losses)."""
+    (`smoothing = 0`, the physical limiter, used for reports) or, for training losses,
+    a soft clip of width `smoothing` (pu) whose gradient leaks `GRADIENT_LEAK` beyond
+    the limits (a surrogate gradient: the forward value is the soft clip's)."""
     if smoothing > 0:
         return (
-            _soft_clip(u_f, plant.uf_min, plant.uf_max, smoothing),
-            _soft_clip(u_r, plant.ur_min, plant.ur_max, smoothing),
+            _leak(u_f, _soft_clip(u_f, plant.uf_min, plant.uf_max, smoothing)),
+            _leak(u_r, _soft_clip(u_r, plant.ur_min, plant.ur_max, smoothing)),
         )
     return (
         jnp.clip(u_f, plant.uf_min, plant.uf_max),
