@@ -41,3 +41,26 @@ def test_operating_point_is_an_open_loop_equilibrium_with_its_field_voltage():
     u_fe = (1.4 * float(z[2]) - 0.9 * np.cos(0.4964)) / 0.5
     dz = sj.plant_vector_field(z, u_fe, 0.0, prefault_stage(plant), plant)
     np.testing.assert_allclose(np.asarray(dz), 0.0, atol=1e-12)
+
+
+def test_input_limits_hard_and_soft():
+    import jax
+
+    from smibjax.plant import GRADIENT_LEAK, apply_limits
+
+    real, paper = sj.Plant.preset("realistic"), sj.Plant()
+    uf, ur = apply_limits(7.0, -3.0, real)
+    assert (float(uf), float(ur)) == (5.0, -1.0)
+    assert float(apply_limits(1e6, -1e6, paper)[0]) == 1e6  # no limits
+    # soft: within w exp(-distance / w) of the hard clip, true slope inside the
+    # limits, a leaked slope beyond them, exact identity without limits
+    w = 0.05
+    for u, hard in ((0.3, 0.3), (4.5, 4.5), (9.0, 5.0), (-9.0, -5.0)):
+        soft = float(apply_limits(u, 0.0, real, w)[0])
+        assert soft == pytest.approx(
+            hard, abs=w * np.exp(-min(abs(u - 5), abs(u + 5)) / w) + 1e-12
+        )
+    slope = jax.grad(lambda v: apply_limits(v, 0.0, real, w)[0])
+    assert float(slope(0.0)) == pytest.approx(1.0)
+    assert float(slope(9.0)) == pytest.approx(GRADIENT_LEAK)
+    assert float(jax.grad(lambda v: apply_limits(v, 0.0, paper, w)[0])(3.0)) == 1.0

@@ -181,8 +181,15 @@ def test_kill_9_then_resume_matches_an_uninterrupted_run(tmp_path):
     env = {**os.environ, "SMIBJAX_CACHE_DIR": str(ROOT / ".jax_cache")}
 
     def cli(*args):
-        return [sys.executable, "-m", "tuning.optimize", "--config", str(cfgfile),
-                "--quiet", *args]
+        return [
+            sys.executable,
+            "-m",
+            "tuning.optimize",
+            "--config",
+            str(cfgfile),
+            "--quiet",
+            *args,
+        ]
 
     subprocess.run(cli("--out", str(tmp_path / "a")), check=True, cwd=ROOT, env=env)
     b = tmp_path / "b"

@@ -63,11 +63,16 @@ def _soft_clip(u: Scalar, lo: Scalar, hi: Scalar, width: float) -> Scalar:
 GRADIENT_LEAK = 0.05
 
 
-def _leak(u: Scalar, y: Scalar) -> Scalar:
-    """y in the forward pass; dy/du + GRADIENT_LEAK in the backward pass (a
-    straight-through leak: beyond a limit the saturated input still tells the loss
-    which way the command pushes, instead of a gradient of zero)."""
-    return y + GRADIENT_LEAK * (u - jax.lax.stop_gradient(u))
+def _leaky_soft_clip(u: Scalar, lo: Scalar, hi: Scalar, width: float) -> Scalar:
+    """The soft clip in the forward pass; in the backward pass its slope s plus
+    GRADIENT_LEAK * (1 - s): a straight-through leak, so that beyond a limit the
+    saturated input still tells the loss which way the command pushes (instead of a
+    gradient of zero), while inside the limits the gradient is the true one."""
+    y, slope = jax.jvp(
+        lambda v: _soft_clip(v, lo, hi, width), (u,), (jnp.ones_like(u),)
+    )
+    leak = GRADIENT_LEAK * (1 - jax.lax.stop_gradient(slope))
+    return y + leak * (u - jax.lax.stop_gradient(u))
 
 
 def apply_limits(
@@ -79,8 +84,8 @@ def apply_limits(
     the limits (a surrogate gradient: the forward value is the soft clip's)."""
     if smoothing > 0:
         return (
-            _leak(u_f, _soft_clip(u_f, plant.uf_min, plant.uf_max, smoothing)),
-            _leak(u_r, _soft_clip(u_r, plant.ur_min, plant.ur_max, smoothing)),
+            _leaky_soft_clip(u_f, plant.uf_min, plant.uf_max, smoothing),
+            _leaky_soft_clip(u_r, plant.ur_min, plant.ur_max, smoothing),
         )
     return (
         jnp.clip(u_f, plant.uf_min, plant.uf_max),
