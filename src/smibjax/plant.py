@@ -60,7 +60,8 @@ def _soft_clip(u: Scalar, lo: Scalar, hi: Scalar, width: float) -> Scalar:
     return jnp.where(fin_hi, hi0 - width * jax.nn.softplus((hi0 - y) / width), y)
 
 
-GRADIENT_LEAK = 0.05
+GRADIENT_LEAK = 0.0  # 0.05 was tried: under the realistic limits it made the
+# reverse pass overflow (inf gradients in every scenario), so it is off by default
 
 
 def _leaky_soft_clip(u: Scalar, lo: Scalar, hi: Scalar, width: float) -> Scalar:
