@@ -69,6 +69,8 @@ def _leaky_soft_clip(u: Scalar, lo: Scalar, hi: Scalar, width: float) -> Scalar:
     GRADIENT_LEAK * (1 - s): a straight-through leak, so that beyond a limit the
     saturated input still tells the loss which way the command pushes (instead of a
     gradient of zero), while inside the limits the gradient is the true one."""
+    if GRADIENT_LEAK == 0:
+        return _soft_clip(u, lo, hi, width)
     y, slope = jax.jvp(
         lambda v: _soft_clip(v, lo, hi, width), (u,), (jnp.ones_like(u),)
     )
