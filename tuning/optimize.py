@@ -346,8 +346,11 @@ def main(argv=None) -> int:
             if not args.out:
                 raise UsageError("--resume needs --out DIR (the run to continue)")
             saved = out / "config.json"
-            if not (out / CHECKPOINT).is_file():
-                raise UsageError(f"--resume: no checkpoint in {str(out)!r}")
+            if not (out / CHECKPOINT).is_file() or not saved.is_file():
+                raise UsageError(
+                    f"--resume: no checkpoint in {str(out)!r} ({CHECKPOINT} and "
+                    "config.json are needed)"
+                )
             cfg = {
                 **json.loads(saved.read_text()),
                 **{
@@ -376,6 +379,9 @@ def main(argv=None) -> int:
         )
         return 0
     except (UsageError, sj.ParameterError) as e:
+        print(f"tuning.optimize: error: {e}", file=sys.stderr)
+        return 2
+    except OSError as e:
         print(f"tuning.optimize: error: {e}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
