@@ -38,6 +38,20 @@ class Setup:
     val_t_end: float
 
 
+def train_run(s: Setup, raw, fault: sj.Fault) -> sj.Trajectory:
+    """One differentiated training simulation: fixed Tsit5 grid, soft input limits."""
+    return sj.simulate(
+        s.space.to_gains(raw),
+        fault,
+        s.plant,
+        adaptation=s.adaptation,
+        t_end=s.train_t_end,
+        solver="fixed",
+        dt=s.train_dt,
+        input_smoothing=s.input_smoothing,
+    )
+
+
 def make_train_step(setup: Setup):
     """(raw, faults) -> (loss, per-scenario losses, terms, stable, grad wrt raw,
     number of scenarios dropped for a non-finite gradient).
@@ -49,16 +63,7 @@ def make_train_step(setup: Setup):
     s = setup
 
     def one(raw, f):
-        tr = sj.simulate(
-            s.space.to_gains(raw),
-            f,
-            s.plant,
-            adaptation=s.adaptation,
-            t_end=s.train_t_end,
-            solver="fixed",
-            dt=s.train_dt,
-            input_smoothing=s.input_smoothing,
-        )
+        tr = train_run(s, raw, f)
         return scenario_loss(tr, s.weights), (loss_terms(tr, s.weights), tr.stable)
 
     per_scenario = eqx.filter_jit(
@@ -90,16 +95,7 @@ def make_loss(setup: Setup):
     s = setup
 
     def one(raw, f):
-        tr = sj.simulate(
-            s.space.to_gains(raw),
-            f,
-            s.plant,
-            adaptation=s.adaptation,
-            t_end=s.train_t_end,
-            solver="fixed",
-            dt=s.train_dt,
-            input_smoothing=s.input_smoothing,
-        )
+        tr = train_run(s, raw, f)
         return scenario_loss(tr, s.weights)
 
     per_scenario = eqx.filter_jit(jax.vmap(one, in_axes=(None, 0)))
