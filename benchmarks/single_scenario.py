@@ -8,13 +8,10 @@ fixed-step solver. Prints a table and writes benchmarks/results/single_scenario.
 from __future__ import annotations
 
 import argparse
-import datetime
-import json
-import platform
 import time
 from pathlib import Path
 
-import jax
+from _results import write_results
 
 import smibjax as sj
 
@@ -56,19 +53,11 @@ def main() -> None:
             f"{k:22} {r['steps']:7d} {r['rejected']:8d} {r['ms_per_scenario']:12.1f} "
             f"{r['first_call_s']:10.1f}"
         )
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    meta = {
-        "date": datetime.date.today().isoformat(),
-        "machine": platform.machine(),
-        "processor": platform.processor(),
-        "python": platform.python_version(),
-        "jax": jax.__version__,
-        "smibjax": sj.__version__,
-        "config": "10 s scenario, paper fault, beta1 = beta2 = -1, batch 1",
-    }
-    (out / "single_scenario.json").write_text(
-        json.dumps({**meta, "rows": rows}, indent=2)
+    write_results(
+        args.out,
+        "single_scenario",
+        {"scenario": "10 s, paper fault, beta1 = beta2 = -1, batch 1"},
+        {"rows": rows},
     )
 
 

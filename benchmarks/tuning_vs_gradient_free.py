@@ -11,10 +11,7 @@ tuning_vs_gradient_free.png (loss against wall time and against simulations).
 from __future__ import annotations
 
 import argparse
-import datetime
-import json
 import os
-import platform
 import sys
 import time
 from pathlib import Path
@@ -32,6 +29,7 @@ from scipy.optimize import minimize  # noqa: E402
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
+from _results import write_results  # noqa: E402
 
 from smibjax.scenarios import sample_faults  # noqa: E402
 from tuning.config import load_config  # noqa: E402
@@ -113,25 +111,17 @@ def main() -> None:
             f"{k:12} {r['final_best_loss']:10.4f} {r['evaluations']:6d} "
             f"{r['wall_s']:8.1f}"
         )
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    meta = {
-        "date": datetime.date.today().isoformat(),
-        "machine": platform.machine(),
-        "cpus": os.cpu_count(),
-        "jax": jax.__version__,
-        "config": {
+    write_results(
+        args.out,
+        "tuning_vs_gradient_free",
+        {
             "batch": args.batch,
             "budget_simulations": args.budget,
             "note": "Adam evaluations include the reverse pass",
         },
-    }
-    (out / "tuning_vs_gradient_free.json").write_text(
-        json.dumps(
-            {**meta, "rows": rows, "adam_curve": grad_curve, "nm_curve": nm_curve},
-            indent=1,
-        )
+        {"rows": rows, "adam_curve": grad_curve, "nm_curve": nm_curve},
     )
+    out = Path(args.out)
     fig, ax = plt.subplots(1, 2, figsize=(11, 4))
     for curve, best, label in (
         (grad_curve, best_gd, "Adam (gradients)"),

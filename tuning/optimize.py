@@ -161,7 +161,12 @@ def save_checkpoint(out: Path, state: dict) -> None:
         },
         "rng": {"seed": state["seed"], "batches": "fold_in(PRNGKey(seed), step)"},
     }
-    atomic_write(out / CHECKPOINT, lambda tmp: pickle.dump(blob, open(tmp, "wb")))
+
+    def dump(tmp):
+        with open(tmp, "wb") as fh:
+            pickle.dump(blob, fh)
+
+    atomic_write(out / CHECKPOINT, dump)
 
 
 def load_checkpoint(out: Path, opt, raw0) -> dict:

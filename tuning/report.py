@@ -74,7 +74,7 @@ def plot_trajectories(out: Path, runs: dict) -> None:
                 d[t > float(tr.t_stop)] = np.nan
                 label += f" (lost sync at {float(tr.t_stop):.2f} s)"
             ax.plot(t, d, style, label=label)
-        ax.axhline(0.4964, color="k", lw=0.6)
+        ax.axhline(float(tr.delta_e), color="k", lw=0.6)
         ax.set_title(title, fontsize=9)
         ax.set_ylabel("delta (rad)")
         ax.legend(fontsize=8)
@@ -84,12 +84,8 @@ def plot_trajectories(out: Path, runs: dict) -> None:
     _save(fig, out / "trajectories.png")
 
 
-def _fmt(x, unit=""):
-    return (
-        "-"
-        if x is None or (isinstance(x, float) and math.isnan(x))
-        else f"{x:.3f}{unit}"
-    )
+def _fmt(x):
+    return "-" if x is None or (isinstance(x, float) and math.isnan(x)) else f"{x:.3f}"
 
 
 def write_report(cfg: dict, out: Path, state: dict) -> None:
