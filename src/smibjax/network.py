@@ -53,11 +53,14 @@ def fault_stage(plant: Plant, lam: Scalar, Xf: Scalar) -> Stage:
     return Stage(X2=x2, Bf=-zb / s)
 
 
-def stage_at(t: Scalar, fault: Fault, plant: Plant) -> Stage:
+def stage_at(t: Scalar, fault: Fault, plant: Plant, flt: Stage | None = None) -> Stage:
     """The stage in force at time t (s): pre-fault for t < t_fault, fault for
-    t_fault <= t < t_clear, post-fault for t_clear <= t < t_reclose, restored after."""
+    t_fault <= t < t_clear, post-fault for t_clear <= t < t_reclose, restored after.
+    `flt`, if given, is `fault_stage(plant, fault.lam, fault.Xf)` computed beforehand
+    (the solver's loop does not hoist it)."""
     pre = prefault_stage(plant)
-    flt = fault_stage(plant, fault.lam, fault.Xf)
+    if flt is None:
+        flt = fault_stage(plant, fault.lam, fault.Xf)
     post = postfault_stage(plant)
     in_fault = (t >= fault.t_fault) & (t < fault.t_clear)
     in_post = (t >= fault.t_clear) & (t < fault.t_reclose)
