@@ -1,4 +1,4 @@
-"""Command line: `python -m smibjax {simulate,reproduce} ...`.
+"""Command line: `python -m smibjax {simulate,reproduce,montecarlo,cct,compare} ...`.
 
 Bad input ends with one line on stderr (`smibjax: error: ...`) and exit status 2;
 no traceback.
@@ -26,6 +26,17 @@ class _Parser(argparse.ArgumentParser):
         raise CLIError(f"{message} (see `python -m smibjax {self._sub} --help`)")
 
     _sub = ""
+
+
+def _setup_devices() -> None:
+    """One XLA host device per core (before JAX starts its CPU backend), so batches
+    are split over all cores (`smibjax.parallel`). Respects a user's XLA_FLAGS."""
+    flags = os.environ.get("XLA_FLAGS", "")
+    if "--xla_force_host_platform_device_count" not in flags:
+        n = os.cpu_count() or 1
+        os.environ["XLA_FLAGS"] = (
+            f"{flags} --xla_force_host_platform_device_count={n}".strip()
+        )
 
 
 def _setup_jax() -> None:
@@ -84,9 +95,12 @@ def _parse_sets(items: list[str]) -> dict[str, float]:
     return out
 
 
-def build_parameters(controller="aftsc", preset="paper", gains_file=None, sets=None):
+def build_parameters(
+    controller="aftsc", preset="paper", gains_file=None, sets=None, complete=False
+):
     """(Gains, Plant, OperatingPoint, InitialEstimates) from the CLI's options: the
-    paper's gains for `controller`, then the gains file, then `--set` values."""
+    paper's gains for `controller`, then the gains file (with `complete`, it must hold
+    all nine gains), then `--set` values."""
     from .io import read_gains
     from .parameters import (
         GAIN_NAMES,
@@ -98,7 +112,7 @@ def build_parameters(controller="aftsc", preset="paper", gains_file=None, sets=N
     )
 
     sets = dict(sets or {})
-    gain_values = read_gains(gains_file) if gains_file else {}
+    gain_values = read_gains(gains_file, complete=complete) if gains_file else {}
     groups = {"gains": {}, "plant": {}, "op": {}, "init": {}}
     owners = {
         **{n: "gains" for n in GAIN_NAMES},
@@ -190,6 +204,300 @@ def _title(gains, fault, args) -> str:
     )
 
 
+def _read_dist(path):
+    """A scenario distribution from a flat TOML/JSON table of name = [lo, hi]."""
+    from .io import tomllib
+    from .parameters import ParameterError
+    from .scenarios import ScenarioDistribution
+
+    if path is None:
+        return ScenarioDistribution()
+    p = Path(path)
+    if not p.is_file():
+        raise ParameterError(f"--dist file {str(p)!r} does not exist or is not a file")
+    try:
+        data = (
+            tomllib.loads(p.read_text())
+            if p.suffix.lower() == ".toml"
+            else json.loads(p.read_text())
+        )
+    except ValueError as e:  # TOMLDecodeError and JSONDecodeError are ValueErrors
+        raise ParameterError(f"--dist file {str(p)!r} is not valid: {e}") from e
+    if not isinstance(data, dict):
+        raise ParameterError(f"--dist file {str(p)!r} must hold a table")
+    return ScenarioDistribution.from_dict(data)
+
+
+def _fresh_out(kind: str) -> Path:
+    import datetime
+
+    stamp = datetime.datetime.now().strftime("%Y%m%d-%H%M%S")
+    return Path("runs") / f"{kind}-{stamp}"
+
+
+def _spec_from_args(args, gains, plant, op, init, dist):
+    from .montecarlo import MonteCarloSpec
+    from .parameters import GAIN_NAMES, PLANT_NAMES
+
+    if args.n < 1:
+        raise CLIError(f"--n {args.n} is not allowed: must be >= 1")
+    if args.chunk < 1:
+        raise CLIError(f"--chunk {args.chunk} is not allowed: must be >= 1")
+    return MonteCarloSpec(
+        n=args.n,
+        seed=args.seed,
+        chunk=min(args.chunk, args.n),
+        gains={k: float(getattr(gains, k)) for k in GAIN_NAMES},
+        plant={k: float(getattr(plant, k)) for k in PLANT_NAMES},
+        op={"delta_e": float(op.delta_e), "Pm_ref": float(op.Pm_ref)},
+        init={"th1": float(init.th1), "th2": float(init.th2)},
+        dist=dist.to_dict(),
+        adaptation=args.adaptation,
+        t_end=args.t_end,
+    )
+
+
+def _runner(args):
+    """The chunk runner: in this process, or on Dask (`--scheduler`, `--workers`)."""
+    import contextlib
+
+    if (
+        getattr(args, "scheduler", None) is None
+        and getattr(args, "workers", None) is None
+    ):
+        return contextlib.nullcontext(None)
+    if args.scheduler is not None and args.workers is not None:
+        raise CLIError("give --scheduler or --workers, not both")
+    if args.workers is not None and args.workers < 1:
+        raise CLIError(f"--workers {args.workers} is not allowed: must be >= 1")
+    from .cluster import dask_runner
+
+    return dask_runner(scheduler=args.scheduler, workers=args.workers)
+
+
+def _cmd_montecarlo(args) -> int:
+    from .montecarlo import run_montecarlo
+
+    gains, plant, op, init = build_parameters(
+        args.controller, args.preset, args.gains, _parse_sets(args.set), complete=True
+    )
+    spec = _spec_from_args(args, gains, plant, op, init, _read_dist(args.dist))
+    out = Path(args.out) if args.out else _fresh_out("montecarlo")
+    if args.resume and not args.out:
+        raise CLIError("--resume needs --out DIR (the folder of the run to finish)")
+    title = _title_mc(gains, args)
+    with _runner(args) as runner:
+        _, summary = run_montecarlo(
+            spec, out, resume=args.resume, runner=runner, title=title
+        )
+    _print_mc(summary, out)
+    return 0
+
+
+def _title_mc(gains, args) -> str:
+    c = "AFTSC" if float(gains.alpha) < 1 else "ASC"
+    return (
+        f"{c}: beta = ({float(gains.beta1):g}, {float(gains.beta2):g}), "
+        f"alpha = {float(gains.alpha):.3g}; {args.n} scenarios, seed {args.seed}, "
+        f"{args.preset} plant"
+    )
+
+
+def _print_mc(summary: dict, out: Path) -> None:
+    lo, hi = summary["stable_fraction_ci95"]
+    st = summary["settling_time"]
+    print(
+        f"stable: {summary['stable']} of {summary['n']} "
+        f"({100 * summary['stable_fraction']:.2f}%, 95% CI {100 * lo:.2f}-"
+        f"{100 * hi:.2f}%)"
+    )
+    if st["count"]:
+        print(
+            f"delta settling time (stable): mean {st['mean']:.3f} s, p50 "
+            f"{st['p50']:.3f} s, p95 {st['p95']:.3f} s, max {st['max']:.3f} s"
+        )
+    print(f"wrote {out}/scenarios.csv, summary.json, summary.md, montecarlo.png")
+
+
+def _cct_sets(args):
+    """{label: Gains} for the CCT lanes: one per --controller."""
+    controllers = args.controller or ["aftsc"]
+    sets = _parse_sets(args.set)
+    out, common = {}, None
+    for c in dict.fromkeys(controllers):
+        gains, plant, op, init = build_parameters(
+            c, args.preset, args.gains, sets, complete=True
+        )
+        out[c] = gains
+        common = (plant, op, init)
+    return out, common
+
+
+def _check_cct_args(args) -> None:
+    if args.fault_time < 0:
+        raise CLIError(f"--fault-time {args.fault_time:g} is not allowed: must be >= 0")
+    if args.reclose_time <= args.fault_time:
+        raise CLIError(
+            f"--reclose-time {args.reclose_time:g} is not allowed: must be after "
+            f"--fault-time {args.fault_time:g}"
+        )
+    if not args.tol > 0:
+        raise CLIError(f"--tol {args.tol:g} is not allowed: must be > 0")
+
+
+def _print_cct(res: dict) -> None:
+    locs = res["fault_location"]
+    print(
+        f"critical clearing time (s), fault at {res['fault_time']:g} s, reclose "
+        f"{res['reclose_time']:g} s, tol {res['tol']:g} s:"
+    )
+    print(f"{'location':>10} " + " ".join(f"{n:>16}" for n in res["sets"]))
+    for j, lam in enumerate(locs):
+        cells = []
+        for r in res["sets"].values():
+            st = r["status"][j]
+            cells.append(
+                f"> {res['window']:g} (window)"
+                if st == "exceeds_window"
+                else "none (unstable)"
+                if st == "unstable_at_min"
+                else f"{r['cct'][j]:.4f}"
+            )
+        print(f"{lam:10g} " + " ".join(f"{c:>16}" for c in cells))
+    if any("exceeds_window" in r["status"] for r in res["sets"].values()):
+        print(
+            f"note: '> {res['window']:g}' = still stable when cleared at reclosure: the "
+            "CCT lies beyond the window (no number is given)"
+        )
+
+
+def _cmd_cct(args) -> int:
+    from .cct import critical_clearing_times
+    from .io import write_json
+    from .plotting import plot_cct
+
+    _check_cct_args(args)
+    sets, (plant, op, init) = _cct_sets(args)
+    res = critical_clearing_times(
+        sets,
+        plant,
+        op=op,
+        init=init,
+        fault_locations=args.fault_location,
+        fault_time=args.fault_time,
+        reclose_time=args.reclose_time,
+        fault_reactance=args.fault_reactance,
+        tol=args.tol,
+        adaptation=args.adaptation,
+        t_end=args.t_end,
+        progress=True,
+    )
+    _print_cct(res)
+    if args.out:
+        out = Path(args.out)
+        write_json(out, res)
+        png = out.with_suffix(".png")
+        plot_cct(res, png)
+        print(f"wrote {out} and {png}")
+    return 0
+
+
+def _cmd_compare(args) -> int:
+    from .cct import critical_clearing_times
+    from .compare import resolve_gain_set, write_compare
+    from .montecarlo import run_montecarlo
+
+    _check_cct_args(args)
+    sets = _parse_sets(args.set)
+    specs = args.gains or ["paper", "paper-asc", "stable"]
+    gain_sets = {}
+    for spec in specs:
+        label, g = resolve_gain_set(spec, sets)
+        base, i = label, 2
+        while label in gain_sets:
+            label, i = f"{base}-{i}", i + 1
+        gain_sets[label] = g
+    _, plant, op, init = build_parameters("aftsc", args.preset, None, sets)
+    dist = _read_dist(args.dist)
+    out = Path(args.out) if args.out else _fresh_out("compare")
+    if out.exists() and any(out.iterdir()) and not args.resume:
+        raise CLIError(
+            f"--out {str(out)!r} exists and is not empty: choose a new folder or add "
+            "--resume"
+        )
+    summaries, rows = {}, {}
+    with _runner(args) as runner:
+        for label, g in gain_sets.items():
+            print(f"== {label}")
+            spec = _spec_from_args(args, g, plant, op, init, dist)
+            sub = out / label
+            r, s = run_montecarlo(
+                spec,
+                sub,
+                resume=args.resume and (sub / "run.json").is_file(),
+                runner=runner,
+                title=label,
+            )
+            summaries[label], rows[label] = s, r
+    res = critical_clearing_times(
+        gain_sets,
+        plant,
+        op=op,
+        init=init,
+        fault_locations=args.fault_location,
+        fault_time=args.fault_time,
+        reclose_time=args.reclose_time,
+        tol=args.tol,
+        adaptation=args.adaptation,
+        t_end=args.t_end,
+        progress=True,
+    )
+    write_compare(out, summaries, rows, res)
+    print((out / "compare.md").read_text())
+    print(f"wrote {out}/compare.md, compare.json, compare.png")
+    return 0
+
+
+def _add_mc_options(p, n_default: int) -> None:
+    p.add_argument("--n", type=int, default=n_default, help="number of scenarios")
+    p.add_argument("--seed", type=int, default=0, help="scenario seed (default 0)")
+    p.add_argument(
+        "--dist",
+        metavar="FILE.toml",
+        help="scenario ranges name = [lo, hi] (t_fault, clear_duration, "
+        "reclose_delay, fault_location, fault_reactance, D, Pm)",
+    )
+    p.add_argument(
+        "--chunk", type=int, default=1024, help="scenarios per batch (default 1024)"
+    )
+    p.add_argument("--t-end", type=float, default=10.0, help="horizon (s)")
+    p.add_argument(
+        "--resume", action="store_true", help="finish the run in --out after a stop"
+    )
+    p.add_argument(
+        "--scheduler", metavar="ADDRESS", help="run chunks on this Dask scheduler"
+    )
+    p.add_argument(
+        "--workers", type=int, help="run chunks on a local Dask cluster of N processes"
+    )
+
+
+def _add_cct_options(p, with_reactance=True) -> None:
+    p.add_argument(
+        "--fault-location",
+        type=float,
+        nargs="+",
+        default=[0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9],
+        metavar="L",
+        help="fault locations in (0, 1) (default 0.1 ... 0.9)",
+    )
+    p.add_argument("--fault-time", type=float, default=0.5, help="t_fault (s)")
+    p.add_argument("--reclose-time", type=float, default=2.0, help="t_reclose (s)")
+    if with_reactance:
+        p.add_argument("--fault-reactance", type=float, default=0.0, help="Xf (pu)")
+    p.add_argument("--tol", type=float, default=1e-3, help="bisection tolerance (s)")
+
+
 def _cmd_reproduce(args) -> int:
     from .reproduce import reproduce
 
@@ -235,6 +543,53 @@ def _parser() -> argparse.ArgumentParser:
     r.add_argument("--preset", choices=["paper", "realistic"], default="paper")
     r.add_argument("--t-end", type=float, default=10.0, help="horizon (s)")
     r.set_defaults(func=_cmd_reproduce)
+
+    m = sub.add_parser(
+        "montecarlo", help="batch Monte Carlo over fault scenarios (resumable)"
+    )
+    m._sub = "montecarlo"
+    _add_common(m)
+    _add_mc_options(m, 1000)
+    m.add_argument("--out", metavar="DIR", help="output folder (default: runs/...)")
+    m.set_defaults(func=_cmd_montecarlo)
+
+    c = sub.add_parser("cct", help="critical clearing times by vmapped bisection")
+    c._sub = "cct"
+    _add_common(c)
+    c.set_defaults(controller=None)
+    for a in c._actions:
+        if a.dest == "controller":
+            a.nargs, a.default = "+", None
+            a.help = "one or more of aftsc, asc (default aftsc)"
+    _add_cct_options(c)
+    c.add_argument("--t-end", type=float, default=10.0, help="horizon (s)")
+    c.add_argument("--out", metavar="FILE.json", help="write the CCTs (+ a .png plot)")
+    c.set_defaults(func=_cmd_cct)
+
+    k = sub.add_parser(
+        "compare", help="Monte Carlo and CCT of several gain sets side by side"
+    )
+    k._sub = "compare"
+    k.add_argument(
+        "--gains",
+        action="append",
+        metavar="FILE|NAME",
+        help="a complete gains file or a built-in set (paper, paper-asc, stable, "
+        "stable-asc); repeat for each set (default: paper, paper-asc, stable)",
+    )
+    k.add_argument(
+        "--set",
+        metavar="NAME=VALUE",
+        action="append",
+        default=[],
+        help="override a gain (all sets), plant or operating-point value",
+    )
+    k.add_argument("--preset", choices=["paper", "realistic"], default="paper")
+    k.add_argument("--adaptation", choices=["oracle", "realizable"], default="oracle")
+    _add_mc_options(k, 1000)
+    _add_cct_options(k, with_reactance=False)
+    k.add_argument("--out", metavar="DIR", help="output folder (default: runs/...)")
+    k.set_defaults(func=_cmd_compare)
     return top
 
 
@@ -244,6 +599,7 @@ def main(argv: list[str] | None = None) -> int:
 
     try:
         args = _parser().parse_args(argv)
+        _setup_devices()
         _setup_jax()
         return args.func(args)
     except (CLIError, ParameterError) as e:

@@ -50,14 +50,21 @@ def read_table(path: str | os.PathLike) -> dict[str, float]:
     return out
 
 
-def read_gains(path: str | os.PathLike) -> dict[str, float]:
-    """Gain values from a flat JSON/TOML table whose keys are gain names."""
+def read_gains(path: str | os.PathLike, complete: bool = False) -> dict[str, float]:
+    """Gain values from a flat JSON/TOML table whose keys are gain names; with
+    `complete`, all nine gains must be there (a gain set for batch studies)."""
     table = read_table(path)
     unknown = sorted(set(table) - set(GAIN_NAMES))
     if unknown:
         raise ParameterError(
             f"unknown gain {unknown[0]!r} in {str(path)!r}: allowed are "
             f"{', '.join(GAIN_NAMES)}"
+        )
+    missing = [g for g in GAIN_NAMES if g not in table]
+    if complete and missing:
+        raise ParameterError(
+            f"gain {missing[0]!r} is missing from {str(path)!r}: a gain set needs "
+            f"all of {', '.join(GAIN_NAMES)}"
         )
     return table
 

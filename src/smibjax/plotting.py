@@ -12,7 +12,13 @@ import numpy as np  # noqa: E402
 
 from .io import atomic_write  # noqa: E402
 
-__all__ = ["trajectory_arrays", "plot_trajectory", "plot_figure"]
+__all__ = [
+    "trajectory_arrays",
+    "plot_trajectory",
+    "plot_figure",
+    "plot_montecarlo",
+    "plot_cct",
+]
 
 _STYLES = ["-", ":", "--", "-."]
 
@@ -128,4 +134,79 @@ def plot_trajectory(
     fig.suptitle(title, fontsize=11)
     _note_lost(fig, {"run": a})
     fig.tight_layout(rect=(0, 0.02, 1, 1))
+    _save(fig, path)
+
+
+def plot_montecarlo(rows: dict[str, np.ndarray], path, title: str = "") -> None:
+    """Histograms of delta settling time and overshoot (stable scenarios) and the
+    stability/settling map over (fault time, clearing duration): colour = settling
+    time, red x = unstable."""
+    stable = rows["stable"].astype(bool)
+    ts = rows["settling_time"]
+    fig, axes = plt.subplots(1, 3, figsize=(15, 4.3))
+    ax = axes[0]
+    good = stable & np.isfinite(ts)
+    if good.any():
+        ax.hist(ts[good], bins=40, color="C0")
+    ax.set_xlabel("delta settling time from fault (s)")
+    ax.set_ylabel("scenarios")
+    ax.set_title(f"settling ({good.sum()} stable of {stable.size})")
+    ax = axes[1]
+    if stable.any():
+        ax.hist(rows["overshoot"][stable], bins=40, color="C1")
+    ax.set_xlabel("first-swing overshoot (rad)")
+    ax.set_title("overshoot (stable scenarios)")
+    ax = axes[2]
+    x, y = rows["t_fault"], rows["clear_duration"]
+    if good.any():
+        sc = ax.scatter(x[good], y[good], c=ts[good], s=8, cmap="viridis")
+        fig.colorbar(sc, ax=ax, label="settling time (s)")
+    if (~stable).any():
+        ax.scatter(x[~stable], y[~stable], marker="x", s=14, c="red", label="unstable")
+        ax.legend(loc="upper right")
+    ax.set_xlabel("fault time (s)")
+    ax.set_ylabel("clearing duration (s)")
+    ax.set_title("stability / settling map")
+    for a in axes:
+        a.grid(alpha=0.3)
+    fig.suptitle(title)
+    fig.tight_layout()
+    _save(fig, path)
+
+
+def plot_cct(result: dict, path, title: str = "") -> None:
+    """CCT against fault location, one line per gain set (`cct` results); a marker on
+    the top edge where the CCT exceeds the window, on the bottom where the run is
+    unstable even for the shortest fault."""
+    fig, ax = plt.subplots(figsize=(7, 4.3))
+    window = result["window"]
+    for label, r in result["sets"].items():
+        loc = np.asarray(result["fault_location"], dtype=float)
+        cct = np.array([np.nan if v is None else v for v in r["cct"]], dtype=float)
+        (line,) = ax.plot(loc, cct, "o-", label=label, ms=4)
+        st = np.asarray(r["status"])
+        if (st == "exceeds_window").any():
+            ax.plot(
+                loc[st == "exceeds_window"],
+                [window] * (st == "exceeds_window").sum(),
+                "^",
+                color=line.get_color(),
+                ms=9,
+            )
+        if (st == "unstable_at_min").any():
+            ax.plot(
+                loc[st == "unstable_at_min"],
+                [0.0] * (st == "unstable_at_min").sum(),
+                "v",
+                color=line.get_color(),
+                ms=9,
+            )
+    ax.axhline(window, color="k", ls="--", lw=1, label="window (reclose - fault)")
+    ax.set_xlabel("fault location (fraction of circuit 1 from the SVC bus)")
+    ax.set_ylabel("critical clearing time (s)")
+    ax.set_ylim(bottom=-0.03 * window, top=1.08 * window)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    ax.set_title(title or "critical clearing time (^: beyond window, v: none)")
+    fig.tight_layout()
     _save(fig, path)

@@ -12,7 +12,12 @@ import jax
 
 from .parameters import Fault, ParameterError
 
-__all__ = ["FaultDistribution", "sample_faults"]
+__all__ = [
+    "FaultDistribution",
+    "ScenarioDistribution",
+    "sample_faults",
+    "sample_scenarios",
+]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -92,3 +97,103 @@ def sample_faults(key: jax.Array, n: int, dist: FaultDistribution) -> Fault:
         lam=u(ks[3], dist.fault_location),
         Xf=u(ks[4], dist.fault_reactance),
     )
+
+
+PLANT_SCENARIO_NAMES = ("D", "Pm")
+
+
+@dataclasses.dataclass(frozen=True)
+class ScenarioDistribution:
+    """A fault distribution, optionally with the plant's true damping D and mechanical
+    power Pm (pu) drawn too (uniform in [lo, hi]; `None`: the plant's own value).
+
+    The controller's operating point (delta_e, Pm_ref) stays nominal: the adaptation
+    law is what must cope with a true D and Pm that differ from it.
+    """
+
+    faults: FaultDistribution = FaultDistribution()
+    D: tuple[float, float] | None = None
+    Pm: tuple[float, float] | None = None
+
+    def __post_init__(self):
+        for name, lo_ok, what in (("D", 0.0, ">= 0"), ("Pm", 0.0, "> 0")):
+            r = getattr(self, name)
+            if r is None:
+                continue
+            try:
+                lo, hi = float(r[0]), float(r[1])
+                if len(r) != 2:
+                    raise ValueError
+            except (TypeError, ValueError, IndexError):
+                raise ParameterError(
+                    f"{name} = {r!r} is not allowed: must be a range [lo, hi]"
+                ) from None
+            if not lo <= hi:
+                raise ParameterError(
+                    f"{name} = [{lo:g}, {hi:g}] is not allowed: empty range (lo > hi)"
+                )
+            bad = lo < lo_ok if name == "D" else lo <= lo_ok
+            if bad:
+                raise ParameterError(
+                    f"{name} = [{lo:g}, {hi:g}] is not allowed: must be {what}"
+                )
+            object.__setattr__(self, name, (lo, hi))
+
+    @classmethod
+    def from_dict(cls, d: dict) -> ScenarioDistribution:
+        """From a table of name -> [lo, hi]: the five fault names of
+        `FaultDistribution`, plus optionally D and Pm. Unknown names are an error."""
+        names = [f.name for f in dataclasses.fields(FaultDistribution)]
+        allowed = names + list(PLANT_SCENARIO_NAMES)
+        for k in d:
+            if k not in allowed:
+                raise ParameterError(
+                    f"unknown scenario key {k!r}: allowed are {', '.join(allowed)}"
+                )
+        faults = FaultDistribution.from_dict({k: d[k] for k in names if k in d})
+        return cls(faults=faults, **{k: d[k] for k in PLANT_SCENARIO_NAMES if k in d})
+
+    def to_dict(self) -> dict:
+        """The inverse of `from_dict` (every fault range; D and Pm if drawn)."""
+        out = {k: list(v) for k, v in dataclasses.asdict(self.faults).items()}
+        for k in PLANT_SCENARIO_NAMES:
+            if getattr(self, k) is not None:
+                out[k] = list(getattr(self, k))
+        return out
+
+
+def sample_scenarios(
+    seed: int, start: int, stop: int, dist: ScenarioDistribution, plant
+) -> tuple[Fault, jax.Array, jax.Array]:
+    """Scenarios `start` to `stop - 1` of the sequence defined by `seed`: a batched
+    `Fault` and the true D and Pm of each (the plant's values where not drawn).
+
+    Scenario i depends on (seed, i) only (its key is `fold_in(PRNGKey(seed), i)`), so
+    any chunking of the sequence, in any order and on any machine, gives the same rows.
+    """
+    if not 0 <= start < stop:
+        raise ParameterError(
+            f"scenario range [{start}, {stop}) is not allowed: need 0 <= start < stop"
+        )
+    base = jax.random.PRNGKey(seed)
+    fd = dist.faults
+    d_rng = dist.D if dist.D is not None else (float(plant.D),) * 2
+    p_rng = dist.Pm if dist.Pm is not None else (float(plant.Pm),) * 2
+
+    def one(i):
+        ks = jax.random.split(jax.random.fold_in(base, i), 7)
+
+        def u(k, r):
+            return jax.random.uniform(k, (), minval=r[0], maxval=r[1], dtype=float)
+
+        tf = u(ks[0], fd.t_fault)
+        tc = tf + u(ks[1], fd.clear_duration)
+        tr = tc + u(ks[2], fd.reclose_delay)
+        return (
+            (tf, tc, tr, u(ks[3], fd.fault_location), u(ks[4], fd.fault_reactance)),
+            u(ks[5], d_rng),
+            u(ks[6], p_rng),
+        )
+
+    (tf, tc, tr, lam, xf), D, Pm = jax.vmap(one)(jax.numpy.arange(start, stop))
+    return Fault(t_fault=tf, t_clear=tc, t_reclose=tr, lam=lam, Xf=xf), D, Pm

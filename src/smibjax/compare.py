@@ -1,0 +1,128 @@
+"""Several gain sets side by side: the same Monte Carlo (same seed, same scenarios) and
+the same CCT sweep for each, in one table and one figure.
+
+A gain set is named by a file (a complete flat table of the nine gains, such as a
+tuner's `gains.json`) or by one of the built-in names in `BUILTIN_SETS`.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+
+from .io import read_gains, write_json, write_text
+from .parameters import GAIN_NAMES, Gains, ParameterError
+
+__all__ = ["BUILTIN_SETS", "resolve_gain_set", "compare_table", "plot_compare"]
+
+# Built-in gain sets: the paper's (which lose synchronism, MODEL.md section 2) and
+# beta1 = beta2 = -1, the sign-corrected choice that stabilizes the loop.
+BUILTIN_SETS = {
+    "paper": ("aftsc", {}),
+    "paper-asc": ("asc", {}),
+    "stable": ("aftsc", {"beta1": -1.0, "beta2": -1.0}),
+    "stable-asc": ("asc", {"beta1": -1.0, "beta2": -1.0}),
+}
+
+
+def resolve_gain_set(
+    spec: str, sets: dict[str, float] | None = None
+) -> tuple[str, Gains]:
+    """(label, Gains) of a built-in name or a complete gains file, with `sets` (gain
+    overrides) applied on top."""
+    sets = {k: v for k, v in (sets or {}).items() if k in GAIN_NAMES}
+    if spec in BUILTIN_SETS:
+        controller, values = BUILTIN_SETS[spec]
+        return spec, Gains.paper(controller, **{**values, **sets})
+    path = Path(spec)
+    if not path.exists():
+        raise ParameterError(
+            f"--gains {spec!r}: no such file, and not a built-in set "
+            f"({', '.join(BUILTIN_SETS)})"
+        )
+    values = read_gains(path, complete=True)
+    label = path.stem if path.stem != "gains" else path.parent.name or path.stem
+    return label, Gains(**{**values, **sets})
+
+
+def _fmt(x, spec=".2f") -> str:
+    return (
+        "-"
+        if x is None or (isinstance(x, float) and not math.isfinite(x))
+        else format(x, spec)
+    )
+
+
+def compare_table(summaries: dict[str, dict], cct: dict) -> str:
+    """Markdown: one row per gain set (Monte Carlo summary and CCT per location)."""
+    locs = cct["fault_location"]
+    head = (
+        "| gain set | stable % (95% CI) | mean t_s (s) | p95 t_s (s) | "
+        "p95 overshoot (rad) | "
+        + " | ".join(f"CCT @ {lam:g} (s)" for lam in locs)
+        + " |"
+    )
+    lines = [head, "|" + "---|" * (5 + len(locs))]
+    for name, s in summaries.items():
+        lo, hi = s["stable_fraction_ci95"]
+        st, ov = s["settling_time"], s["overshoot"]
+        r = cct["sets"][name]
+        cells = []
+        for v, status in zip(r["cct"], r["status"], strict=True):
+            if status == "exceeds_window":
+                cells.append(f"> {cct['window']:.3g}")
+            elif status == "unstable_at_min":
+                cells.append("none")
+            else:
+                cells.append(f"{v:.3f}")
+        lines.append(
+            f"| {name} | {100 * s['stable_fraction']:.1f} ({100 * lo:.1f}-"
+            f"{100 * hi:.1f}) | {_fmt(st.get('mean'))} | {_fmt(st.get('p95'))} | "
+            f"{_fmt(ov.get('p95'), '.3f')} | " + " | ".join(cells) + " |"
+        )
+    return "\n".join(lines) + "\n"
+
+
+def plot_compare(rows: dict[str, dict], cct: dict, path) -> None:
+    """Left: stable fraction per set; middle: settling-time distributions (stable
+    scenarios); right: CCT against fault location per set."""
+    from .plotting import _save, plt
+
+    names = list(rows)
+    fig, axes = plt.subplots(1, 3, figsize=(16, 4.5))
+    frac = [float(np.mean(rows[n]["stable"])) for n in names]
+    axes[0].bar(range(len(names)), [100 * f for f in frac], color="C0")
+    axes[0].set_xticks(range(len(names)), names, rotation=20)
+    axes[0].set_ylabel("stable scenarios (%)")
+    axes[0].set_ylim(0, 105)
+    data = []
+    for n in names:
+        ts = rows[n]["settling_time"][rows[n]["stable"].astype(bool)]
+        data.append(ts[np.isfinite(ts)] if ts.size else np.array([np.nan]))
+    axes[1].boxplot(data, tick_labels=names)
+    axes[1].tick_params(axis="x", rotation=20)
+    axes[1].set_ylabel("delta settling time, stable scenarios (s)")
+    loc = np.asarray(cct["fault_location"], dtype=float)
+    for n in names:
+        c = [np.nan if v is None else v for v in cct["sets"][n]["cct"]]
+        st = np.asarray(cct["sets"][n]["status"])
+        c = np.where(st == "exceeds_window", cct["window"], np.asarray(c, dtype=float))
+        axes[2].plot(loc, c, "o-", label=n, ms=4)
+    axes[2].axhline(cct["window"], color="k", ls="--", lw=1, label="window")
+    axes[2].set_xlabel("fault location")
+    axes[2].set_ylabel("CCT (s; at the window line: beyond it)")
+    axes[2].legend(fontsize=8)
+    for a in axes:
+        a.grid(alpha=0.3)
+    fig.tight_layout()
+    _save(fig, path)
+
+
+def write_compare(out: Path, summaries, rows, cct) -> None:
+    """compare.md, compare.json and compare.png in `out`."""
+    table = compare_table(summaries, cct)
+    write_text(out / "compare.md", "# Gain sets compared\n\n" + table)
+    write_json(out / "compare.json", {"montecarlo": summaries, "cct": cct})
+    plot_compare(rows, cct, out / "compare.png")

@@ -1,0 +1,455 @@
+"""Batch Monte Carlo over fault scenarios: seeded, chunked, resumable.
+
+A run is described by a `MonteCarloSpec` (plain numbers, JSON-able). Scenario i depends
+only on (seed, i) (see `sample_scenarios`), chunk k holds scenarios
+[k chunk, (k + 1) chunk), and `compute_chunk(spec, k)` is a pure function of the two:
+chunks can run in any order, in any process, and be retried. `run_montecarlo` runs the
+missing chunks (in this process, or through any `runner`, such as the Dask one in
+`smibjax.cluster`), persists each as `chunks/NNNNNN.npz` the moment it finishes (atomic
+rename), and assembles `scenarios.csv`, `summary.json`, `summary.md` and the plots only
+when every chunk is there. `run.json` records the spec and whether the run is complete.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import json
+import math
+import time
+from collections.abc import Callable, Iterable, Iterator
+from pathlib import Path
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from .io import write_json, write_npz, write_text
+from .metrics import metrics
+from .parallel import device_map
+from .parameters import Gains, InitialEstimates, OperatingPoint, ParameterError, Plant
+from .scenarios import ScenarioDistribution, sample_scenarios
+from .simulate import simulate
+
+__all__ = [
+    "COLUMNS",
+    "MonteCarloSpec",
+    "compute_chunk",
+    "run_montecarlo",
+    "summarize",
+    "wilson_interval",
+    "read_rows",
+]
+
+# One row per scenario in scenarios.csv, in this order.
+COLUMNS = (
+    "index",
+    "t_fault",  # s
+    "t_clear",  # s
+    "t_reclose",  # s
+    "clear_duration",  # t_clear - t_fault (s)
+    "fault_location",  # lam, from the SVC bus
+    "fault_reactance",  # Xf (pu)
+    "D",  # true damping of the scenario
+    "Pm",  # true mechanical power (pu)
+    "stable",  # 1: no loss of synchronism and delta in band at t_end
+    "lost_sync",  # 1: the run left 0 < delta < pi (or the model's domain)
+    "t_stop",  # s: t_end, or when synchronism was lost
+    "settling_time",  # delta, 0.01 rad band, from fault inception (s; inf: never)
+    "settling_Vt",  # s
+    "settling_omega",  # s
+    "overshoot",  # first-swing max |delta - delta_e| (rad)
+    "effort_uf",  # integral of u_f^2 (pu^2 s)
+    "effort_ur",  # integral of u_r^2 (pu^2 s)
+    "peak_uf",  # max |u_f| (pu)
+    "peak_ur",  # max |u_r| (pu)
+    "peak_B",  # max |B| (pu)
+    "num_steps",  # accepted solver steps
+)
+_INT_COLUMNS = ("index", "stable", "lost_sync", "num_steps")
+
+
+@dataclasses.dataclass(frozen=True)
+class MonteCarloSpec:
+    """Everything that determines the rows of a Monte Carlo run.
+
+    `gains`, `plant`, `op`, `init` are flat name -> value tables (a gain set from
+    `Gains`, plant overrides, operating point, initial estimates); `dist` is a
+    `ScenarioDistribution.to_dict()`. The chunk size is part of the spec only because
+    chunk files are named by index; the rows do not depend on it.
+    """
+
+    n: int
+    seed: int = 0
+    chunk: int = 1024
+    gains: dict = dataclasses.field(default_factory=dict)
+    plant: dict = dataclasses.field(default_factory=dict)
+    op: dict = dataclasses.field(default_factory=dict)
+    init: dict = dataclasses.field(default_factory=dict)
+    dist: dict = dataclasses.field(
+        default_factory=lambda: ScenarioDistribution().to_dict()
+    )
+    adaptation: str = "oracle"
+    t_end: float = 10.0
+    dt_save: float = 0.01
+    rtol: float = 1e-6
+    atol: float = 1e-8
+    max_steps: int = 50_000
+
+    def __post_init__(self):
+        for name in ("n", "chunk"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, int) or v < 1:
+                raise ParameterError(f"{name} = {v!r} is not allowed: must be >= 1")
+        if self.adaptation not in ("oracle", "realizable"):
+            raise ParameterError(
+                f"adaptation = {self.adaptation!r} is not allowed: must be 'oracle' "
+                "or 'realizable'"
+            )
+        for name in ("t_end", "dt_save", "rtol", "atol"):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v > 0):
+                raise ParameterError(f"{name} = {v:g} is not allowed: must be > 0")
+        ScenarioDistribution.from_dict(self.dist)  # validates
+        self.parameters()  # validates the parameter tables
+
+    @property
+    def n_chunks(self) -> int:
+        return -(-self.n // self.chunk)
+
+    def chunk_range(self, k: int) -> tuple[int, int]:
+        """Scenario indices [start, stop) of chunk k."""
+        return k * self.chunk, min(self.n, (k + 1) * self.chunk)
+
+    def distribution(self) -> ScenarioDistribution:
+        return ScenarioDistribution.from_dict(self.dist)
+
+    def parameters(self) -> tuple[Gains, Plant, OperatingPoint, InitialEstimates]:
+        """The parameter sets (values may be given as numbers or 'inf' strings)."""
+
+        def f(d):
+            return {k: float(v) for k, v in d.items()}
+
+        return (
+            Gains(**f(self.gains)),
+            Plant(**f(self.plant)),
+            OperatingPoint(**f(self.op)),
+            InitialEstimates(**f(self.init)),
+        )
+
+    def to_dict(self) -> dict:
+        """JSON-able (infinite values as the strings 'inf' and '-inf')."""
+
+        def clean(v):
+            if isinstance(v, dict):
+                return {k: clean(x) for k, x in v.items()}
+            if isinstance(v, (list, tuple)):
+                return [clean(x) for x in v]
+            if isinstance(v, float) and math.isinf(v):
+                return "inf" if v > 0 else "-inf"
+            return v
+
+        return clean(dataclasses.asdict(self))
+
+    @classmethod
+    def from_dict(cls, d: dict) -> MonteCarloSpec:
+        return cls(**d)
+
+
+@functools.lru_cache(maxsize=8)
+def _engine(adaptation, t_end, dt_save, rtol, atol, max_steps) -> Callable:
+    """The jitted batch function for one solver configuration (compiled once per
+    process and batch shape, then reused for every chunk)."""
+
+    @eqx.filter_jit
+    def run(params, scenarios):
+        gains, plant, op, init = params
+        faults, D, Pm = scenarios
+
+        def one(fault, d, pm):
+            p = eqx.tree_at(lambda q: (q.D, q.Pm), plant, (d, pm))
+            tr = simulate(
+                gains,
+                fault,
+                p,
+                op=op,
+                init=init,
+                adaptation=adaptation,
+                t_end=t_end,
+                dt_save=dt_save,
+                rtol=rtol,
+                atol=atol,
+                max_steps=max_steps,
+            )
+            m = metrics(tr)
+            return {
+                "stable": m.stable,
+                "lost_sync": tr.lost_sync,
+                "t_stop": tr.t_stop,
+                "settling_time": m.settling_delta,
+                "settling_Vt": m.settling_Vt,
+                "settling_omega": m.settling_omega,
+                "overshoot": m.overshoot,
+                "effort_uf": m.effort_uf,
+                "effort_ur": m.effort_ur,
+                "peak_uf": m.peak_uf,
+                "peak_ur": m.peak_ur,
+                "peak_B": m.peak_B,
+                "num_steps": tr.num_steps,
+            }
+
+        return jax.vmap(one)(faults, D, Pm)
+
+    return run
+
+
+def compute_chunk(spec: MonteCarloSpec, k: int, devices=None) -> dict[str, np.ndarray]:
+    """The rows of chunk `k` (a dict of `COLUMNS` -> arrays), split over `devices`
+    (default: every JAX device of this process). A pure function of (spec, k)."""
+    if not 0 <= k < spec.n_chunks:
+        raise ParameterError(
+            f"chunk {k} is not allowed: the run has chunks 0 to {spec.n_chunks - 1}"
+        )
+    start, stop = spec.chunk_range(k)
+    params = spec.parameters()
+    faults, D, Pm = sample_scenarios(
+        spec.seed, start, stop, spec.distribution(), params[1]
+    )
+    scen = (faults, D, Pm)
+    if stop - start < spec.chunk:  # pad the last chunk: one compiled shape for all
+        scen = jax.tree_util.tree_map(
+            lambda a: jnp.concatenate(
+                [a, jnp.repeat(a[-1:], spec.chunk - (stop - start), axis=0)]
+            ),
+            scen,
+        )
+    fn = _engine(
+        spec.adaptation, spec.t_end, spec.dt_save, spec.rtol, spec.atol, spec.max_steps
+    )
+    out = device_map(fn, params, scen, devices)
+    m = stop - start
+    rows = {k_: np.asarray(v)[:m] for k_, v in out.items()}
+    rows["index"] = np.arange(start, stop)
+    rows["t_fault"] = np.asarray(faults.t_fault)
+    rows["t_clear"] = np.asarray(faults.t_clear)
+    rows["t_reclose"] = np.asarray(faults.t_reclose)
+    rows["clear_duration"] = rows["t_clear"] - rows["t_fault"]
+    rows["fault_location"] = np.asarray(faults.lam)
+    rows["fault_reactance"] = np.asarray(faults.Xf)
+    rows["D"] = np.asarray(D)
+    rows["Pm"] = np.asarray(Pm)
+    return {c: rows[c].astype(int) if c in _INT_COLUMNS else rows[c] for c in COLUMNS}
+
+
+def in_process_runner(
+    spec: MonteCarloSpec, chunks: Iterable[int]
+) -> Iterator[tuple[int, dict]]:
+    """Run chunks one after another in this process (each spread over all devices)."""
+    for k in chunks:
+        yield k, compute_chunk(spec, k)
+
+
+def wilson_interval(k: int, n: int, z: float = 1.959964) -> tuple[float, float]:
+    """Wilson score interval for a binomial proportion k/n (95% by default)."""
+    if n == 0:
+        return (0.0, 1.0)
+    p = k / n
+    den = 1 + z**2 / n
+    mid = (p + z**2 / (2 * n)) / den
+    half = z * math.sqrt(p * (1 - p) / n + z**2 / (4 * n**2)) / den
+    return (max(0.0, mid - half), min(1.0, mid + half))
+
+
+def _quantiles(x: np.ndarray) -> dict:
+    x = x[np.isfinite(x)]
+    if x.size == 0:
+        return {"count": 0}
+    q = np.quantile(x, [0.05, 0.5, 0.9, 0.95, 0.99])
+    return {
+        "count": int(x.size),
+        "mean": float(x.mean()),
+        "p05": float(q[0]),
+        "p50": float(q[1]),
+        "p90": float(q[2]),
+        "p95": float(q[3]),
+        "p99": float(q[4]),
+        "max": float(x.max()),
+    }
+
+
+def summarize(rows: dict[str, np.ndarray]) -> dict:
+    """Stable fraction (with its 95% Wilson interval), loss-of-synchronism fraction,
+    and quantiles of settling times and overshoot over the stable scenarios."""
+    stable = rows["stable"].astype(bool)
+    n, k = int(stable.size), int(stable.sum())
+    lo, hi = wilson_interval(k, n)
+    return {
+        "n": n,
+        "stable": k,
+        "stable_fraction": k / n if n else 0.0,
+        "stable_fraction_ci95": [lo, hi],
+        "lost_sync": int(rows["lost_sync"].sum()),
+        "settling_time": _quantiles(rows["settling_time"][stable]),
+        "settling_Vt": _quantiles(rows["settling_Vt"][stable]),
+        "overshoot": _quantiles(rows["overshoot"][stable]),
+        "num_steps": {
+            "mean": float(rows["num_steps"].mean()),
+            "max": int(rows["num_steps"].max()),
+        },
+    }
+
+
+def summary_markdown(summary: dict, title: str = "Monte Carlo") -> str:
+    """summary.json as a short markdown report."""
+    s = summary
+    lo, hi = s["stable_fraction_ci95"]
+    lines = [
+        f"# {title}",
+        "",
+        f"- scenarios: {s['n']}",
+        f"- stable: {s['stable']} ({100 * s['stable_fraction']:.2f}%, 95% CI "
+        f"{100 * lo:.2f}-{100 * hi:.2f}%)",
+        f"- lost synchronism: {s['lost_sync']}",
+        f"- solver steps per scenario: mean {s['num_steps']['mean']:.0f}, "
+        f"max {s['num_steps']['max']}",
+        "",
+        "Over the stable scenarios:",
+        "",
+        "| quantity | mean | p05 | p50 | p90 | p95 | p99 | max |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    for key, label in (
+        ("settling_time", "delta settling time (s, band 0.01 rad)"),
+        ("settling_Vt", "Vt settling time (s, band 0.01 pu)"),
+        ("overshoot", "first-swing overshoot (rad)"),
+    ):
+        q = s[key]
+        if q["count"] == 0:
+            lines.append(f"| {label} | - | - | - | - | - | - | - |")
+            continue
+        cols = [q[c] for c in ("mean", "p05", "p50", "p90", "p95", "p99", "max")]
+        lines.append(f"| {label} | " + " | ".join(f"{v:.3f}" for v in cols) + " |")
+    return "\n".join(lines) + "\n"
+
+
+def write_csv(path: Path, rows: dict[str, np.ndarray]) -> None:
+    """scenarios.csv: a header of `COLUMNS`, one line per scenario (inf: 'inf')."""
+    cols = [rows[c] for c in COLUMNS]
+    lines = [",".join(COLUMNS)]
+    for i in range(cols[0].size):
+        lines.append(
+            ",".join(
+                str(int(c[i])) if name in _INT_COLUMNS else repr(float(c[i]))
+                for name, c in zip(COLUMNS, cols, strict=True)
+            )
+        )
+    write_text(path, "\n".join(lines) + "\n")
+
+
+def read_rows(path: str | Path) -> dict[str, np.ndarray]:
+    """scenarios.csv back as a dict of arrays."""
+    data = np.genfromtxt(path, delimiter=",", names=True, dtype=float)
+    return {
+        c: data[c].astype(int) if c in _INT_COLUMNS else data[c].astype(float)
+        for c in COLUMNS
+    }
+
+
+def _chunk_path(out: Path, k: int) -> Path:
+    return out / "chunks" / f"{k:06d}.npz"
+
+
+def _check_resume(out: Path, spec: MonteCarloSpec) -> dict:
+    manifest = out / "run.json"
+    if not manifest.is_file():
+        raise ParameterError(
+            f"--resume: {str(out)!r} holds no Monte Carlo run (no run.json)"
+        )
+    saved = json.loads(manifest.read_text())
+    old = saved.get("spec", {})
+    new = spec.to_dict()
+    for key in new:
+        if old.get(key) != new[key]:
+            raise ParameterError(
+                f"--resume: {key} = {new[key]!r} differs from the run in "
+                f"{str(out)!r} ({key} = {old.get(key)!r}); repeat its options"
+            )
+    return saved
+
+
+def run_montecarlo(
+    spec: MonteCarloSpec,
+    out: str | Path,
+    *,
+    resume: bool = False,
+    runner: Callable | None = None,
+    progress: bool = True,
+    title: str = "Monte Carlo",
+    plots: bool = True,
+) -> tuple[dict[str, np.ndarray], dict]:
+    """Run (or finish, with `resume`) the Monte Carlo `spec` into folder `out`.
+
+    Returns (rows, summary). A fresh run refuses a non-empty `out`; `resume` refuses a
+    folder without `run.json` or with a different spec. Chunks already on disk are not
+    recomputed; the final files are the same as those of an uninterrupted run.
+    """
+    from tqdm.auto import tqdm
+
+    out = Path(out)
+    if resume:
+        manifest = _check_resume(out, spec)
+    else:
+        if out.exists() and (not out.is_dir() or any(out.iterdir())):
+            raise ParameterError(
+                f"--out {str(out)!r} exists and is not empty: choose a new folder or "
+                "add --resume to finish the run in it"
+            )
+        manifest = {"spec": spec.to_dict(), "complete": False}
+        write_json(out / "run.json", manifest)
+    todo = [k for k in range(spec.n_chunks) if not _chunk_path(out, k).is_file()]
+    done_rows = spec.n - sum(
+        spec.chunk_range(k)[1] - spec.chunk_range(k)[0] for k in todo
+    )
+    runner = runner or in_process_runner
+    t0, computed = time.perf_counter(), 0
+    with tqdm(
+        total=spec.n,
+        initial=int(done_rows),
+        unit="scen",
+        disable=not progress,
+        desc="monte carlo",
+        smoothing=0.1,
+    ) as bar:
+        for k, rows in runner(spec, todo):
+            write_npz(_chunk_path(out, k), rows)
+            computed += rows["index"].size
+            bar.update(rows["index"].size)
+    elapsed = time.perf_counter() - t0
+    parts = []
+    for k in range(spec.n_chunks):
+        with np.load(_chunk_path(out, k)) as z:
+            parts.append({c: z[c] for c in COLUMNS})
+    rows = {c: np.concatenate([p[c] for p in parts]) for c in COLUMNS}
+    summary = summarize(rows)
+    write_csv(out / "scenarios.csv", rows)
+    write_json(out / "summary.json", summary)
+    write_text(out / "summary.md", summary_markdown(summary, title))
+    if plots:
+        from .plotting import plot_montecarlo
+
+        plot_montecarlo(rows, out / "montecarlo.png", title)
+    runs = manifest.get("sessions", [])
+    runs.append(
+        {
+            "scenarios_computed": int(computed),
+            "seconds": elapsed,
+            "scenarios_per_second": computed / elapsed if computed else None,
+            "devices": len(jax.devices()),
+        }
+    )
+    write_json(
+        out / "run.json",
+        {"spec": spec.to_dict(), "complete": True, "sessions": runs},
+    )
+    return rows, summary
