@@ -107,6 +107,22 @@ def check_config(cfg: dict) -> None:
         t["input_smoothing"],
         "must be >= 0",
     )
+    sc = cfg["search"]
+    for key, lo in (("generations", 0), ("population", 2), ("elite", 1), ("batch", 1)):
+        v = sc[key]
+        req(
+            isinstance(v, int) and not isinstance(v, bool) and v >= lo,
+            f"search.{key}",
+            v,
+            f"must be an integer >= {lo}",
+        )
+    req(
+        sc["elite"] < sc["population"],
+        "search.elite",
+        sc["elite"],
+        f"must be < search.population = {sc['population']}",
+    )
+    req(sc["sigma"] > 0, "search.sigma", sc["sigma"], "must be > 0")
     o = cfg["optimizer"]
     req(
         o["learning_rate"] > 0,

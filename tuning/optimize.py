@@ -37,6 +37,7 @@ from smibjax.scenarios import FaultDistribution, sample_faults  # noqa: E402
 
 from .config import check_config, load_config  # noqa: E402
 from .params import GainSpace, gains_to_dict  # noqa: E402
+from .search import cross_entropy_search, make_population_score  # noqa: E402
 from .train import Setup, make_train_step, make_validate, summarize  # noqa: E402
 
 CHECKPOINT = "checkpoint.pkl"
@@ -160,6 +161,7 @@ def save_checkpoint(out: Path, state: dict) -> None:
             "raw": jax.tree_util.tree_map(np.asarray, state["best"]["raw"]),
         },
         "rng": {"seed": state["seed"], "batches": "fold_in(PRNGKey(seed), step)"},
+        "search": state.get("search", []),
     }
 
     def dump(tmp):
@@ -188,6 +190,7 @@ def load_checkpoint(out: Path, opt, raw0) -> dict:
         "opt_state": opt_state,
         "history": blob["history"],
         "validation": blob["validation"],
+        "search": blob.get("search", []),
         "best": {
             **blob["best"],
             "raw": jax.tree_util.tree_map(jax.numpy.asarray, blob["best"]["raw"]),
@@ -237,6 +240,39 @@ def _engine(cfg: dict, setup: Setup):
     return _ENGINES[key]
 
 
+def _search(cfg, space, setup, dist, raw0, quiet):
+    """The optional gradient-free warm start ([search] in the config)."""
+    sc = cfg["search"]
+    if int(sc["generations"]) == 0:
+        return raw0, []
+    faults = sample_faults(jax.random.PRNGKey(int(sc["seed"])), int(sc["batch"]), dist)
+
+    def report(row):
+        if not quiet:
+            print(
+                f"search generation {row['generation']}: best score "
+                f"{row['best_score']:.3f} s (this generation: "
+                f"{row['generation_best']:.3f} s, "
+                f"{100 * row['generation_best_stable']:.0f}% stable)",
+                file=sys.stderr,
+            )
+
+    return cross_entropy_search(
+        space,
+        raw0,
+        make_population_score(
+            setup, unstable_cost=2 * float(cfg["validation"]["t_end"])
+        ),
+        faults,
+        generations=int(sc["generations"]),
+        population=int(sc["population"]),
+        elite=int(sc["elite"]),
+        sigma=float(sc["sigma"]),
+        seed=int(sc["seed"]),
+        progress=report,
+    )
+
+
 def run(
     cfg: dict,
     out: Path,
@@ -264,16 +300,21 @@ def run(
     if resume:
         state = load_checkpoint(out, opt, raw0)
     else:
+        raw0, search_history = _search(cfg, space, setup, dist, raw0, quiet)
         state = {
             "step": 0,
             "raw": raw0,
             "opt_state": opt.init(raw0),
             "history": [],
             "validation": [],
+            "search": search_history,
+            "seed": seed,
         }
         v0, _ = validate(raw0)
         state["validation"].append({"step": 0, **v0})
         state["best"] = {"step": 0, "raw": raw0, "summary": v0}
+        if search_history:  # a resume starts after the search
+            save_checkpoint(out, state)
     state["seed"] = seed
     key = jax.random.PRNGKey(seed)
     bar = _progress(steps, state["step"], quiet)

@@ -88,6 +88,37 @@ def _fmt(x):
     return "-" if x is None or (isinstance(x, float) and math.isnan(x)) else f"{x:.3f}"
 
 
+def _search_lines(cfg: dict, state: dict) -> list[str]:
+    """The gradient-free warm start, if the config ran one."""
+    hist = state.get("search") or []
+    if not hist:
+        return []
+    sc = cfg["search"]
+    last = hist[-1]
+    return [
+        "## Gradient-free warm start",
+        "",
+        f"Cross-entropy method over the raw gains: {len(hist)} generations of "
+        f"{sc['population']} candidates (elite {sc['elite']}, initial spread "
+        f"{sc['sigma']}), each scored on {sc['batch']} fixed faults (seed "
+        f"{sc['seed']}) with the adaptive solver: mean delta settling time, "
+        f"{2 * float(cfg['validation']['t_end']):g} s for an unstable run. Score of "
+        f"the start {hist[0]['mean_score']:.3f} s; best score "
+        f"{last['best_score']:.3f} s. The gradient steps start from the best "
+        "candidate (its validation is step 0 below).",
+        "",
+        "| generation | best score so far (s) | generation best (s) | its stable "
+        "fraction |",
+        "|---|---|---|---|",
+        *[
+            f"| {r['generation']} | {r['best_score']:.3f} | "
+            f"{r['generation_best']:.3f} | {r['generation_best_stable']:.2f} |"
+            for r in hist
+        ],
+        "",
+    ]
+
+
 def write_report(cfg: dict, out: Path, state: dict) -> None:
     space, setup = state["space"], state["setup"]
     raw0 = space.to_raw(state["init"])
@@ -144,6 +175,7 @@ def write_report(cfg: dict, out: Path, state: dict) -> None:
             else ""
         ),
         "",
+        *_search_lines(cfg, state),
         "## Exact validation metrics",
         "",
         f"`gains.json` holds the gains of the best validation (step {best['step']}: "
