@@ -5,7 +5,18 @@ Importing smibjax enables JAX's 64-bit mode: the closed loop is stiff and the fi
 law works near phi = 0, where float32 is not enough.
 """
 
-import jax
+import os
+
+# Equinox turns runtime checks into host callbacks, and XLA's persistent compilation
+# cache refuses programs with host callbacks. The only such checks in smibjax's
+# compiled graphs are diffrax's argument checks (save times ordered and inside
+# [t0, t1], jump times ordered), which smibjax's validated inputs always satisfy; as
+# NaN-on-failure checks they compile without callbacks, so the cache can store the
+# simulator (first call in a new process: seconds instead of tens of seconds). Set
+# EQX_ON_ERROR yourself (before importing equinox) to choose otherwise.
+os.environ.setdefault("EQX_ON_ERROR", "nan")
+
+import jax  # noqa: E402
 
 jax.config.update("jax_enable_x64", True)
 

@@ -277,6 +277,7 @@ def _runner(args):
 
 def _cmd_montecarlo(args) -> int:
     from .montecarlo import run_montecarlo
+    from .parameters import ParameterError
 
     gains, plant, op, init = build_parameters(
         args.controller, args.preset, args.gains, _parse_sets(args.set), complete=True
@@ -287,9 +288,17 @@ def _cmd_montecarlo(args) -> int:
         raise CLIError("--resume needs --out DIR (the folder of the run to finish)")
     title = _title_mc(gains, args)
     with _runner(args) as runner:
-        _, summary = run_montecarlo(
-            spec, out, resume=args.resume, runner=runner, title=title
-        )
+        try:
+            _, summary = run_montecarlo(
+                spec, out, resume=args.resume, runner=runner, title=title
+            )
+        except Exception as e:  # a cluster failure, e.g. a chunk that killed workers
+            if runner is None or isinstance(e, (CLIError, ParameterError, OSError)):
+                raise
+            raise CLIError(
+                f"the cluster failed ({type(e).__name__}: {e}); the chunks already "
+                f"written are kept: finish with --resume --out {out}"
+            ) from None
     _print_mc(summary, out)
     return 0
 

@@ -217,10 +217,14 @@ def compute_chunk(spec: MonteCarloSpec, k: int, devices=None) -> dict[str, np.nd
         spec.seed, start, stop, spec.distribution(), params[1]
     )
     scen = (faults, D, Pm)
-    if stop - start < spec.chunk:  # pad the last chunk: one compiled shape for all
+    # Pad the last chunk so that every chunk has one compiled shape, and never run a
+    # batch of one: XLA compiles a batch of one to a different program, whose rounding
+    # (and step count) differs from a larger batch's.
+    width = max(spec.chunk, 2)
+    if stop - start < width:
         scen = jax.tree_util.tree_map(
             lambda a: jnp.concatenate(
-                [a, jnp.repeat(a[-1:], spec.chunk - (stop - start), axis=0)]
+                [a, jnp.repeat(a[-1:], width - (stop - start), axis=0)]
             ),
             scen,
         )

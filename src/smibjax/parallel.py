@@ -48,7 +48,9 @@ def device_map(fn, replicated, batched, devices=None):
     outputs (leading batch axis) are concatenated and trimmed to the input length."""
     devices = list(jax.devices() if devices is None else devices)
     size = jax.tree_util.tree_leaves(batched)[0].shape[0]
-    n = max(1, min(len(devices), size))
+    # slices of at least 2: a batch of one compiles to a different program (other
+    # rounding), so results would depend on how a batch happens to be split
+    n = max(1, min(len(devices), size // 2))
     if n == 1:
         return fn(replicated, batched)
     slices, size = split_batch(batched, n)

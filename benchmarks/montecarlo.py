@@ -1,0 +1,110 @@
+"""The Monte Carlo command's own throughput: N scenarios of 10 s (AFTSC, beta1 = beta2 =
+-1, default adaptive Tsit5 rtol 1e-6 atol 1e-8) through `run_montecarlo`, chunks split
+over all cores, files and all. Prints a table and writes
+benchmarks/results/montecarlo.json and montecarlo.png (the run's own figure).
+
+    python benchmarks/montecarlo.py [--n 100000] [--chunk 4096] [--t-end 10]
+
+Target (issue 5): 100,000 scenarios at >= 300 scenarios/s on a 2-core machine.
+"""
+
+from __future__ import annotations
+
+import os
+
+os.environ.setdefault(
+    "XLA_FLAGS", f"--xla_force_host_platform_device_count={os.cpu_count()}"
+)
+
+import argparse  # noqa: E402
+import shutil  # noqa: E402
+import tempfile  # noqa: E402
+import time  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+import jax  # noqa: E402
+from _results import write_results  # noqa: E402
+
+import smibjax as sj  # noqa: E402
+from smibjax.montecarlo import MonteCarloSpec, compute_chunk, run_montecarlo  # noqa: E402
+
+TARGET = 300.0  # scenarios / s
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--n", type=int, default=100_000)
+    ap.add_argument("--chunk", type=int, default=4096)
+    ap.add_argument("--t-end", type=float, default=10.0)
+    ap.add_argument("--out", default=str(Path(__file__).parent / "results"))
+    args = ap.parse_args()
+    g = sj.Gains.paper("aftsc", beta1=-1.0, beta2=-1.0)
+    spec = MonteCarloSpec(
+        n=args.n,
+        chunk=min(args.chunk, args.n),
+        gains={k: float(getattr(g, k)) for k in sj.GAIN_NAMES},
+        t_end=args.t_end,
+    )
+    # compile once outside the timed run (a fresh process pays this once: reported)
+    t0 = time.perf_counter()
+    compute_chunk(spec, 0)
+    first_chunk = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    compute_chunk(spec, 0)
+    warm_chunk = time.perf_counter() - t0
+    tmp = Path(tempfile.mkdtemp(prefix="smibjax-mc-bench-"))
+    try:
+        t0 = time.perf_counter()
+        rows, summary = run_montecarlo(spec, tmp / "run", title="benchmark")
+        wall = time.perf_counter() - t0
+        Path(args.out).mkdir(parents=True, exist_ok=True)
+        shutil.copy(tmp / "run" / "montecarlo.png", Path(args.out) / "montecarlo.png")
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+    rate = args.n / wall
+    chunk_rate = spec.chunk / warm_chunk
+    steps = summary["num_steps"]
+    print(f"{'quantity':44} {'value':>12}")
+    for name, v in (
+        ("scenarios", f"{args.n}"),
+        ("devices (cores)", f"{len(jax.devices())}"),
+        ("chunk", f"{spec.chunk}"),
+        ("first chunk incl. compile (s)", f"{first_chunk:.1f}"),
+        ("warm chunk (s)", f"{warm_chunk:.2f}"),
+        ("whole run, files included (s)", f"{wall:.1f}"),
+        ("scenarios / s (whole run)", f"{rate:.0f}"),
+        ("scenarios / s (one warm chunk)", f"{chunk_rate:.0f}"),
+        ("target scenarios / s", f">= {TARGET:.0f}"),
+        ("met", "yes" if rate >= TARGET else "no"),
+        ("stable fraction", f"{summary['stable_fraction']:.4f}"),
+        ("steps / scenario (mean, max)", f"{steps['mean']:.0f}, {steps['max']}"),
+    ):
+        print(f"{name:44} {v:>12}")
+    write_results(
+        args.out,
+        "montecarlo",
+        {
+            "n": args.n,
+            "chunk": spec.chunk,
+            "t_end": args.t_end,
+            "controller": "aftsc, beta1 = beta2 = -1",
+            "solver": "Tsit5 adaptive, rtol 1e-6, atol 1e-8",
+        },
+        {
+            "devices": len(jax.devices()),
+            "first_chunk_s": first_chunk,
+            "warm_chunk_s": warm_chunk,
+            "wall_s": wall,
+            "scenarios_per_s": rate,
+            "chunk_scenarios_per_s": chunk_rate,
+            "target_scenarios_per_s": TARGET,
+            "met": rate >= TARGET,
+            "stable_fraction": summary["stable_fraction"],
+            "steps_mean": steps["mean"],
+            "steps_max": steps["max"],
+        },
+    )
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,187 @@
+"""Monte Carlo chunks on Dask distributed (`--workers N`, `--scheduler ADDRESS`).
+
+`dask_runner` is a context manager yielding a runner for `run_montecarlo`: one Dask task
+per chunk, keyed by the run's spec and the chunk index, results streamed back as they
+complete (the client writes them to `chunks/`, so `--resume` and the progress bar work
+as in the single-process run). Only the `MonteCarloSpec` (plain numbers) and the chunk
+index travel; the task, `_run_chunk`, calls `compute_chunk(spec, k)` in the worker, whose
+jitted engine is cached per process: each worker compiles once and reuses the compiled
+simulator for every later chunk of the same solver configuration. A chunk is a pure
+function of (spec, k), so a retry or a duplicate gives the same rows: a worker that dies
+mid-chunk costs a rerun of that chunk on another worker (the scheduler reschedules the
+tasks of a lost worker up to `distributed.scheduler.allowed-failures` times; a task that
+raises is retried `retries` times), and the rows equal those of the in-process run.
+
+`--workers N` starts a `LocalCluster` of N worker processes with one thread each, JAX on
+the CPU, one XLA host device per worker and single-threaded Eigen (`worker_env`), so N
+workers on N cores do not oversubscribe. With `--scheduler`, start the workers with the
+same environment, one process and one thread per core, for example:
+
+    XLA_FLAGS="--xla_force_host_platform_device_count=1 --xla_cpu_multi_thread_eigen=false" \\
+    OMP_NUM_THREADS=1 JAX_PLATFORMS=cpu \\
+    dask worker tcp://SCHEDULER:8786 --nworkers $(nproc) --nthreads 1
+
+(`dask scheduler` starts the scheduler; every worker needs the same smibjax and JAX
+versions as the client: the task is sent by reference to `smibjax.cluster._run_chunk`.)
+Dask is an optional extra: `pip install 'smibjax[cluster]'`.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import functools
+import hashlib
+import json
+import os
+from collections.abc import Iterable, Iterator
+
+from .montecarlo import MonteCarloSpec, compute_chunk
+from .parameters import ParameterError
+
+__all__ = ["DaskRunner", "dask_runner", "chunk_key", "worker_env"]
+
+_MISSING = (
+    "--workers/--scheduler need the cluster extra: pip install 'smibjax[cluster]'"
+)
+
+# XLA flags of a worker process: one host device, Eigen on the calling thread only.
+_WORKER_XLA_FLAGS = (
+    "--xla_force_host_platform_device_count=1",
+    "--xla_cpu_multi_thread_eigen=false",
+)
+
+
+def _distributed():
+    """The `distributed` module, or ParameterError naming the extra to install."""
+    try:
+        import distributed
+    except ImportError:
+        raise ParameterError(_MISSING) from None
+    return distributed
+
+
+def worker_env() -> dict[str, str]:
+    """Environment of a local worker process: JAX on the CPU in 64-bit mode, one XLA host
+    device, single-threaded Eigen/OpenMP/BLAS, the client's other XLA flags and its
+    persistent compilation cache folder (if any)."""
+    kept = [
+        f
+        for f in os.environ.get("XLA_FLAGS", "").split()
+        if not f.startswith(tuple(x.split("=")[0] for x in _WORKER_XLA_FLAGS))
+    ]
+    env = {
+        "XLA_FLAGS": " ".join([*kept, *_WORKER_XLA_FLAGS]),
+        "JAX_PLATFORMS": "cpu",
+        "JAX_ENABLE_X64": "1",
+        "OMP_NUM_THREADS": "1",
+        "MKL_NUM_THREADS": "1",
+        "OPENBLAS_NUM_THREADS": "1",
+    }
+    try:
+        import jax
+
+        cache = jax.config.jax_compilation_cache_dir
+    except Exception:  # pragma: no cover - unusual JAX builds
+        cache = None
+    cache = cache or os.environ.get("JAX_COMPILATION_CACHE_DIR")
+    if cache:
+        env["JAX_COMPILATION_CACHE_DIR"] = str(cache)
+    return env
+
+
+@functools.lru_cache(maxsize=1)
+def _setup_worker() -> None:
+    """Once per worker process, before its first chunk: apply the environment's JAX
+    settings, which JAX reads when it is imported (a spawned worker may import it, via
+    its parent's main module, before the nanny sets the worker's environment)."""
+    import jax
+
+    jax.config.update("jax_enable_x64", True)
+    platforms = os.environ.get("JAX_PLATFORMS")
+    if platforms and jax.config.jax_platforms != platforms:
+        jax.config.update("jax_platforms", platforms)
+    cache = os.environ.get("JAX_COMPILATION_CACHE_DIR")
+    if cache and not jax.config.jax_compilation_cache_dir:
+        jax.config.update("jax_compilation_cache_dir", cache)
+        jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.5)
+
+
+def _run_chunk(spec: MonteCarloSpec, k: int) -> dict:
+    """The Dask task: the rows of chunk k, computed in the worker process."""
+    _setup_worker()
+    return compute_chunk(spec, k)
+
+
+def chunk_key(spec: MonteCarloSpec, k: int) -> str:
+    """The Dask key of chunk k of `spec`: the same in every process and session, so a
+    resubmitted chunk is the same task."""
+    text = json.dumps(spec.to_dict(), sort_keys=True, separators=(",", ":"))
+    digest = hashlib.sha256(text.encode()).hexdigest()[:16]
+    return f"smibjax-mc-{digest}-s{spec.seed}-{k}"
+
+
+class DaskRunner:
+    """A `run_montecarlo` runner on a Dask `client`: `runner(spec, chunks)` submits one
+    task per chunk and yields `(k, rows)` as tasks complete (any order)."""
+
+    def __init__(self, client, retries: int = 3):
+        self.client = client
+        self.retries = retries
+
+    def __call__(
+        self, spec: MonteCarloSpec, chunks: Iterable[int]
+    ) -> Iterator[tuple[int, dict]]:
+        as_completed = _distributed().as_completed
+        chunks = list(chunks)
+        futures = {}
+        for k in chunks:
+            fut = self.client.submit(
+                _run_chunk,
+                spec,
+                k,
+                key=chunk_key(spec, k),
+                retries=self.retries,
+                priority=-k,  # earlier chunks first
+            )
+            futures[fut.key] = (k, fut)
+        if not futures:
+            return
+        try:
+            for fut in as_completed([f for _, f in futures.values()]):
+                k, _ = futures.pop(fut.key)
+                rows = fut.result()
+                fut.release()
+                yield k, rows
+        finally:
+            left = [f for _, f in futures.values()]
+            if left:
+                self.client.cancel(left)
+
+
+@contextlib.contextmanager
+def dask_runner(
+    scheduler: str | None = None, workers: int | None = None, *, retries: int = 3
+) -> Iterator[DaskRunner]:
+    """A runner on Dask: `workers=N` starts a local cluster of N single-threaded worker
+    processes (closed on exit); `scheduler=ADDRESS` connects to a running scheduler.
+    The runner's `client` is the `distributed.Client`."""
+    distributed = _distributed()
+    if (scheduler is None) == (workers is None):
+        raise ParameterError("give a Dask scheduler address or a number of workers")
+    if workers is not None and (isinstance(workers, bool) or workers < 1):
+        raise ParameterError(f"workers = {workers!r} is not allowed: must be >= 1")
+    with contextlib.ExitStack() as stack:
+        if workers is not None:
+            cluster = stack.enter_context(
+                distributed.LocalCluster(
+                    n_workers=workers,
+                    threads_per_worker=1,
+                    processes=True,
+                    env=worker_env(),
+                    dashboard_address=None,
+                )
+            )
+            client = stack.enter_context(distributed.Client(cluster))
+        else:
+            client = stack.enter_context(distributed.Client(scheduler))
+        yield DaskRunner(client, retries=retries)

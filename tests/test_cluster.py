@@ -1,0 +1,124 @@
+"""Monte Carlo chunks on Dask (issue 7): a real LocalCluster of 2 worker processes gives
+the in-process rows, also when a worker process is killed during the run."""
+
+import os
+import signal
+import sys
+
+import jax
+import numpy as np
+import pytest
+
+import smibjax as sj
+from conftest import ROOT
+from smibjax.montecarlo import MonteCarloSpec, read_rows, run_montecarlo
+
+pytest.importorskip("distributed")
+
+from smibjax.cluster import chunk_key, dask_runner  # noqa: E402
+
+GAINS = sj.Gains.paper("aftsc", beta1=-1.0, beta2=-1.0)
+# 6 chunks of 4 (a vmapped batch of one scenario gives slightly different rows from a
+# batch of several, so each device slice holds at least 2 here and in the workers).
+SPEC = MonteCarloSpec(
+    n=24,
+    chunk=4,
+    gains={name: float(getattr(GAINS, name)) for name in sj.GAIN_NAMES},
+    t_end=3.0,
+)
+
+
+def _csv(path) -> list[str]:
+    return (path / "scenarios.csv").read_text().splitlines()
+
+
+@pytest.fixture(scope="module")
+def reference(tmp_path_factory):
+    """The in-process run of SPEC (its scenarios.csv lines)."""
+    assert SPEC.chunk // len(jax.devices()) >= 2
+    out = tmp_path_factory.mktemp("mc") / "in-process"
+    run_montecarlo(SPEC, out, plots=False, progress=False)
+    return _csv(out)
+
+
+@pytest.fixture(scope="module")
+def runner():
+    """A LocalCluster of 2 single-threaded worker processes, shared by the tests."""
+    with dask_runner(workers=2) as r:
+        yield r
+
+
+def _recording(runner, seen, kill_after_first=False):
+    """`runner`, recording every chunk index it yields; with `kill_after_first`, SIGKILL
+    a worker process that is computing a chunk when the first result arrives."""
+    info = {}
+
+    def run(spec, chunks):
+        pids = runner.client.run(os.getpid)  # worker address -> process id
+        it = runner(spec, chunks)
+        for i, (k, rows) in enumerate(it):
+            if kill_after_first and i == 0:
+                busy = [a for a, keys in runner.client.processing().items() if keys]
+                victim = busy[0] if busy else sorted(pids)[0]
+                info["victim"], info["busy"] = pids[victim], bool(busy)
+                os.kill(pids[victim], signal.SIGKILL)
+            seen.append(k)
+            yield k, rows
+
+    return run, info
+
+
+def test_local_cluster_matches_in_process(reference, runner, tmp_path):
+    assert len(runner.client.scheduler_info()["workers"]) == 2
+    devices = runner.client.run(lambda: (len(jax.devices()), jax.config.jax_enable_x64))
+    assert sorted(devices.values()) == [(1, True), (1, True)]
+    seen = []
+    run, _ = _recording(runner, seen)
+    rows, summary = run_montecarlo(
+        SPEC, tmp_path / "dask", runner=run, plots=False, progress=False
+    )
+    assert sorted(seen) == list(range(SPEC.n_chunks))
+    assert _csv(tmp_path / "dask") == reference
+    assert np.array_equal(rows["index"], np.arange(SPEC.n))
+    assert summary["n"] == SPEC.n
+
+
+def test_killed_worker_loses_nothing(reference, runner, tmp_path):
+    seen = []
+    run, info = _recording(runner, seen, kill_after_first=True)
+    run_montecarlo(SPEC, tmp_path / "dask", runner=run, plots=False, progress=False)
+    assert info["busy"], "no worker was computing a chunk when the first one arrived"
+    # every chunk exactly once, rows equal to the in-process run
+    assert sorted(seen) == list(range(SPEC.n_chunks))
+    assert _csv(tmp_path / "dask") == reference
+    assert np.array_equal(
+        read_rows(tmp_path / "dask" / "scenarios.csv")["index"], np.arange(SPEC.n)
+    )
+    # the nanny restarted the killed worker process
+    runner.client.wait_for_workers(2, timeout=60)
+    assert info["victim"] not in runner.client.run(os.getpid).values()
+
+
+def test_chunk_keys_are_deterministic():
+    assert chunk_key(SPEC, 3) == chunk_key(MonteCarloSpec.from_dict(SPEC.to_dict()), 3)
+    assert chunk_key(SPEC, 3) != chunk_key(SPEC, 4)
+    other = MonteCarloSpec.from_dict({**SPEC.to_dict(), "seed": 1})
+    assert chunk_key(SPEC, 3) != chunk_key(other, 3)
+
+
+def test_missing_extra(monkeypatch, tmp_path, capsys):
+    monkeypatch.setitem(sys.modules, "distributed", None)  # import fails
+    # main() sets XLA_FLAGS and the compilation cache: keep this process's settings
+    monkeypatch.setenv("XLA_FLAGS", os.environ.get("XLA_FLAGS", ""))
+    monkeypatch.setenv("SMIBJAX_CACHE_DIR", str(ROOT / ".jax_cache"))
+    msg = "--workers/--scheduler need the cluster extra: pip install 'smibjax[cluster]'"
+    with pytest.raises(sj.ParameterError) as e:
+        with dask_runner(workers=2):
+            pass
+    assert str(e.value) == msg
+    from smibjax.cli import main
+
+    out = tmp_path / "mc"
+    assert main(["montecarlo", "--n", "4", "--workers", "2", "--out", str(out)]) == 2
+    assert capsys.readouterr().err.strip() == f"smibjax: error: {msg}"
+    assert not out.exists()
