@@ -1,0 +1,113 @@
+"""Shared by the issue-6 benchmark scripts: the benchmark scenarios and gains, the
+batched simulation, timing and the tight-tolerance accuracy check.
+
+Importing this imports JAX, so a script sets XLA_FLAGS (one host device per core)
+before importing it.
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from pathlib import Path
+
+import jax
+import numpy as np
+
+import smibjax as sj
+from smibjax.metrics import metrics
+from smibjax.scenarios import FaultDistribution, sample_faults
+
+ROOT = Path(__file__).resolve().parents[1]
+DEFAULT_OUT = Path(__file__).resolve().parent / "results"
+CONTROLLERS = ("aftsc", "asc")
+ALPHA = {"aftsc": "5/7", "asc": "1"}
+# Tight-tolerance reference of the accuracy checks (adaptive Tsit5, same model).
+REF_RTOL, REF_ATOL, REF_MAX_STEPS = 1e-10, 1e-12, 400_000
+
+
+def enable_cache() -> str | None:
+    """The persistent compilation cache, as the CLI sets it, but only where
+    SMIBJAX_CACHE_DIR is set (the tests use it to skip recompiles); returns the folder.
+    Timed calls are second calls, which the cache does not change."""
+    cache = os.environ.get("SMIBJAX_CACHE_DIR")
+    if cache:
+        jax.config.update("jax_compilation_cache_dir", cache)
+        jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.5)
+    return cache or None
+
+
+def gains(controller: str) -> sj.Gains:
+    """The paper's gains with the stabilizing beta1 = beta2 = -1."""
+    return sj.Gains.paper(controller, beta1=-1.0, beta2=-1.0)
+
+
+def scenarios(seed: int, n: int) -> sj.Fault:
+    """`n` faults from the default distribution; the first k do not depend on n."""
+    return sample_faults(jax.random.PRNGKey(seed), n, FaultDistribution())
+
+
+def take(tree, n: int):
+    """The first n scenarios of a batched pytree."""
+    return jax.tree_util.tree_map(lambda a: a[:n], tree)
+
+
+def row(tree, i: int):
+    """Scenario i of a batched pytree (unbatched)."""
+    return jax.tree_util.tree_map(lambda a: a[i], tree)
+
+
+def host_devices(k: int) -> list:
+    """The first k CPU devices (k = 1: one core)."""
+    devs = jax.devices()
+    if not 1 <= k <= len(devs):
+        raise SystemExit(
+            f"--devices {k}: this process has {len(devs)} host devices (set by "
+            "XLA_FLAGS --xla_force_host_platform_device_count)"
+        )
+    return devs[:k]
+
+
+def batched_metrics(t_end: float):
+    """jit(vmap(simulate + metrics)): (gains, faults) -> (stable, settling time of
+    delta (s), accepted steps), default adaptive solver."""
+
+    def one(g, f):
+        tr = sj.simulate(g, f, t_end=t_end)
+        m = metrics(tr)
+        return m.stable, m.settling_delta, tr.num_steps
+
+    return jax.jit(jax.vmap(one, in_axes=(None, 0)))
+
+
+def timed(fn, repeat: int):
+    """(first-call seconds, best of `repeat` later calls, last output); `fn` blocks."""
+    t0 = time.perf_counter()
+    out = fn()
+    first = time.perf_counter() - t0
+    best = float("inf")
+    for _ in range(max(repeat, 1)):
+        t0 = time.perf_counter()
+        out = fn()
+        best = min(best, time.perf_counter() - t0)
+    return first, best, out
+
+
+def deltas(g: sj.Gains, faults: sj.Fault, n: int, t_end: float, tight: bool):
+    """(delta (n, samples), lost_sync (n,)) of the first n scenarios, one unbatched
+    run each: default solver, or the tight reference (rtol 1e-10, atol 1e-12)."""
+    kw = (
+        {"rtol": REF_RTOL, "atol": REF_ATOL, "max_steps": REF_MAX_STEPS}
+        if tight
+        else {}
+    )
+    runs = [sj.simulate(g, row(faults, i), t_end=t_end, **kw) for i in range(n)]
+    return (
+        np.stack([np.asarray(tr.delta) for tr in runs]),
+        np.array([bool(tr.lost_sync) for tr in runs]),
+    )
+
+
+def status(value: float, target: float, higher_is_better: bool = True) -> str:
+    ok = value >= target if higher_is_better else value <= target
+    return "met" if ok else "MISSED"

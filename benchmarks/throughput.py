@@ -1,0 +1,220 @@
+"""Scenarios per second for 10 s fault scenarios, AFTSC (alpha = 5/7) and ASC
+(alpha = 1), against batch size, on one core and on all cores (issue 6).
+
+Faults from the default FaultDistribution (seed --seed), gains beta1 = beta2 = -1, the
+default adaptive solver of `simulate` (Tsit5, rtol 1e-6, atol 1e-8). The batch is one
+jit(vmap(simulate + metrics)) call per host device (`smibjax.parallel.device_map`),
+returning the stable flag, the settling time and the step count; the time is the best
+of --repeat calls after a warm-up (compiling) call. The accuracy of delta is checked
+on the first --n-check scenarios against a tight-tolerance run (rtol 1e-10, atol
+1e-12). Prints a table against the targets (at batch >= 1024 on 2+ devices: AFTSC >=
+600, ASC >= 1800 scenarios/s; delta within 1e-5 rad) and writes
+benchmarks/results/throughput.json and throughput.png.
+
+    python benchmarks/throughput.py [--batches 1 16 256 1024 4096] [--devices 1 2]
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+from pathlib import Path
+
+# One host device per core (at least two), before JAX starts its CPU backend.
+if "--xla_force_host_platform_device_count" not in os.environ.get("XLA_FLAGS", ""):
+    os.environ["XLA_FLAGS"] = (
+        os.environ.get("XLA_FLAGS", "")
+        + f" --xla_force_host_platform_device_count={max(os.cpu_count() or 1, 2)}"
+    ).strip()
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+import argparse  # noqa: E402
+
+import jax  # noqa: E402
+import matplotlib  # noqa: E402
+import numpy as np  # noqa: E402
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+from _common import (  # noqa: E402
+    ALPHA,
+    CONTROLLERS,
+    DEFAULT_OUT,
+    batched_metrics,
+    deltas,
+    enable_cache,
+    gains,
+    host_devices,
+    scenarios,
+    status,
+    take,
+    timed,
+)
+from _results import write_results  # noqa: E402
+
+from smibjax.parallel import device_map  # noqa: E402
+
+TARGET = {"aftsc": 600.0, "asc": 1800.0}  # scenarios/s, batch >= 1024, 2+ devices
+TARGET_BATCH, TARGET_DEVICES, TARGET_DELTA = 1024, 2, 1e-5
+
+
+def parse_args(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--batches", type=int, nargs="+", default=[1, 16, 256, 1024, 4096])
+    ap.add_argument(
+        "--devices",
+        type=int,
+        nargs="+",
+        default=[1, 2],
+        help="host device counts to run on (1 = one core)",
+    )
+    ap.add_argument(
+        "--controllers", nargs="+", choices=CONTROLLERS, default=CONTROLLERS
+    )
+    ap.add_argument("--repeat", type=int, default=2, help="timed calls (best kept)")
+    ap.add_argument(
+        "--n-check", type=int, default=4, help="scenarios checked for accuracy"
+    )
+    ap.add_argument("--t-end", type=float, default=10.0, help="scenario length (s)")
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--out", default=str(DEFAULT_OUT))
+    return ap.parse_args(argv)
+
+
+def main(argv=None) -> None:
+    args = parse_args(argv)
+    cache = enable_cache()
+    fn = batched_metrics(args.t_end)
+    pool = scenarios(args.seed, max(max(args.batches), args.n_check))
+    rows, accuracy = [], {}
+    for ctrl in args.controllers:
+        g = gains(ctrl)
+        if args.n_check > 0:
+            err = np.abs(
+                deltas(g, pool, args.n_check, args.t_end, tight=False)[0]
+                - deltas(g, pool, args.n_check, args.t_end, tight=True)[0]
+            )
+            accuracy[ctrl] = {
+                "n": args.n_check,
+                "max_abs_delta_error_rad": float(err.max()),
+                "per_scenario": [float(e) for e in err.max(axis=1)],
+            }
+        for ndev in args.devices:
+            devs = host_devices(ndev)
+            for batch in args.batches:
+                faults = take(pool, batch)
+
+                def call(g=g, faults=faults, devs=devs):
+                    return jax.block_until_ready(device_map(fn, g, faults, devs))
+
+                first, best, (stable, settling, steps) = timed(call, args.repeat)
+                steps = np.asarray(steps)
+                rate = batch / best
+                r = {
+                    "controller": ctrl,
+                    "devices": ndev,
+                    "batch": batch,
+                    "scenarios_per_s": rate,
+                    "seconds": best,
+                    "first_call_s": first,
+                    "mean_steps": float(steps.mean()),
+                    "max_steps": int(steps.max()),
+                    "us_per_scenario_step": 1e6 * best / (steps.max() * batch),
+                    "stable_fraction": float(np.mean(np.asarray(stable))),
+                    "mean_settling_s": float(
+                        np.mean(np.asarray(settling)[np.asarray(stable)])
+                    )
+                    if np.any(np.asarray(stable))
+                    else None,
+                }
+                judged = batch >= TARGET_BATCH and ndev >= TARGET_DEVICES
+                r["target_scenarios_per_s"] = TARGET[ctrl] if judged else None
+                r["status"] = status(rate, TARGET[ctrl]) if judged else "-"
+                rows.append(r)
+                print(
+                    f"  {ctrl} devices={ndev} batch={batch}: {rate:.1f} scen/s "
+                    f"(first call {first:.1f} s)",
+                    flush=True,
+                )
+
+    print()
+    print(
+        f"{'controller':10} {'dev':>3} {'batch':>6} {'scen/s':>9} {'target':>7} "
+        f"{'status':>7} {'mean st':>8} {'max st':>7} {'us/sc-st':>8} {'stable':>6}"
+    )
+    for r in rows:
+        tgt = r["target_scenarios_per_s"]
+        print(
+            f"{r['controller']:10} {r['devices']:3d} {r['batch']:6d} "
+            f"{r['scenarios_per_s']:9.1f} {'' if tgt is None else f'{tgt:.0f}':>7} "
+            f"{r['status']:>7} {r['mean_steps']:8.0f} {r['max_steps']:7d} "
+            f"{r['us_per_scenario_step']:8.3f} {r['stable_fraction']:6.2f}"
+        )
+    for ctrl, a in accuracy.items():
+        e = a["max_abs_delta_error_rad"]
+        a["status"] = status(e, TARGET_DELTA, higher_is_better=False)
+        print(
+            f"{ctrl}: max |delta - tight reference| over {a['n']} scenarios = "
+            f"{e:.2e} rad (target <= {TARGET_DELTA:g}: {a['status']})"
+        )
+
+    config = {
+        "scenario_s": args.t_end,
+        "faults": f"sample_faults(PRNGKey({args.seed}), n, FaultDistribution())",
+        "gains": "Gains.paper(controller, beta1=-1, beta2=-1)",
+        "solver": "simulate default: adaptive Tsit5, rtol 1e-6, atol 1e-8",
+        "batches": args.batches,
+        "devices": args.devices,
+        "host_devices": len(jax.devices()),
+        "repeat": args.repeat,
+        "timing": "best of repeat calls after a warm-up call, wall time of "
+        "device_map(jit(vmap(simulate + metrics)))",
+        "us_per_scenario_step": "seconds / (max steps * batch) * 1e6",
+        "reference": "simulate(rtol=1e-10, atol=1e-12), first n_check scenarios",
+        "n_check": args.n_check,
+        "targets": {
+            "scenarios_per_s": TARGET,
+            "at": f"batch >= {TARGET_BATCH}, devices >= {TARGET_DEVICES}",
+            "max_abs_delta_error_rad": TARGET_DELTA,
+        },
+        "persistent_cache": cache,
+    }
+    path = write_results(
+        args.out, "throughput", config, {"rows": rows, "accuracy": accuracy}
+    )
+
+    fig, ax = plt.subplots(figsize=(7, 4.5))
+    for ctrl in args.controllers:
+        for ndev in args.devices:
+            rr = [r for r in rows if r["controller"] == ctrl and r["devices"] == ndev]
+            ax.plot(
+                [r["batch"] for r in rr],
+                [r["scenarios_per_s"] for r in rr],
+                marker="o" if ndev > 1 else "s",
+                mfc=None if ndev > 1 else "none",
+                ls="-" if ndev > 1 else "--",
+                color="C0" if ctrl == "aftsc" else "C1",
+                label=f"{ctrl.upper()} (alpha = {ALPHA[ctrl]}), {ndev} core"
+                + ("s" if ndev > 1 else ""),
+            )
+        ax.axhline(
+            TARGET[ctrl],
+            color="C0" if ctrl == "aftsc" else "C1",
+            ls=":",
+            lw=1,
+            label=f"{ctrl.upper()} target",
+        )
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_xlabel("batch size (scenarios)")
+    ax.set_ylabel("scenarios / s")
+    ax.set_title(f"{args.t_end:g} s scenarios, adaptive Tsit5 rtol 1e-6")
+    ax.grid(alpha=0.3, which="both")
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(Path(args.out) / "throughput.png", dpi=110)
+    print(f"wrote {path} and throughput.png")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,189 @@
+"""The benchmark scripts of benchmarks/ run end to end on tiny configurations, so that
+they cannot rot. No wall-clock assertions: exit status 0, the JSON's keys, finite
+positive numbers, and the accuracy figures the scripts check.
+
+The scripts start together (one process each, so both cores work) the first time a
+test of this module needs one, each with its own persistent compilation cache under
+.jax_cache/, so that reruns skip most compiles. Batches of 4 on 2 devices: device_map
+splits a batch only into slices of 2 or more.
+"""
+
+import json
+import math
+import os
+import subprocess
+import sys
+
+import pytest
+
+from conftest import ROOT
+
+BENCH = ROOT / "benchmarks"
+TIMEOUT = 600
+
+# script -> tiny command-line arguments
+TINY = {
+    "throughput": [
+        "--batches",
+        "4",
+        "--devices",
+        "1",
+        "2",
+        "--n-check",
+        "1",
+        "--t-end",
+        "0.5",
+        "--repeat",
+        "1",
+    ],
+    "vs_scipy": [
+        "--n-scipy",
+        "1",
+        "--batch",
+        "4",
+        "--devices",
+        "2",
+        "--t-end",
+        "1.5",  # through the first fault (t_fault 0.98 s) and its clearing
+        "--repeat",
+        "1",
+    ],
+    "gradients": ["--batch", "1", "--t-end", "1.5", "--repeat", "1"],
+    "compile": ["--cases", "simulate", "--repeat", "1", "--t-end", "0.5"],
+}
+
+
+@pytest.fixture(scope="module")
+def started(request, tmp_path_factory):
+    """Start every benchmark that a selected test of this module needs, at once."""
+    wanted = [
+        name
+        for name in TINY
+        if any(
+            item.module is request.module and item.name == f"test_{name}_tiny"
+            for item in request.session.items
+        )
+    ]
+    procs = {}
+    for name in wanted:
+        out = tmp_path_factory.mktemp(name)
+        env = {
+            **os.environ,
+            "SMIBJAX_CACHE_DIR": str(ROOT / ".jax_cache" / f"benchmarks-{name}"),
+            "MPLBACKEND": "Agg",
+        }
+        log = open(out / "log.txt", "w")  # closed at the end of the module
+        p = subprocess.Popen(
+            [sys.executable, str(BENCH / f"{name}.py"), *TINY[name], "--out", str(out)],
+            cwd=ROOT,
+            env=env,
+            stdout=log,
+            stderr=subprocess.STDOUT,
+        )
+        procs[name] = (p, out, log)
+    yield procs
+    for p, _, log in procs.values():
+        if p.poll() is None:
+            p.kill()
+            p.wait()
+        log.close()
+
+
+def finish(started, name):
+    """Wait for the script; its JSON results (the output is printed on failure)."""
+    p, out, log = started[name]
+    try:
+        rc = p.wait(timeout=TIMEOUT)
+    except subprocess.TimeoutExpired:
+        p.kill()
+        rc = p.wait()
+    log.flush()
+    text = (out / "log.txt").read_text()
+    print(text)
+    assert rc == 0, f"{name}.py exited with {rc}:\n{text[-4000:]}"
+    assert (out / f"{name}.png").is_file()
+    res = json.loads((out / f"{name}.json").read_text())
+    for key in ("date", "machine", "cpus", "python", "jax", "smibjax", "config"):
+        assert key in res
+    return res
+
+
+def positive(*values):
+    for v in values:
+        assert isinstance(v, (int, float)) and math.isfinite(v) and v > 0, v
+
+
+def test_throughput_tiny(started):
+    res = finish(started, "throughput")
+    rows = res["rows"]
+    assert {(r["controller"], r["devices"], r["batch"]) for r in rows} == {
+        (c, d, 4) for c in ("aftsc", "asc") for d in (1, 2)
+    }
+    for r in rows:
+        positive(
+            r["scenarios_per_s"],
+            r["seconds"],
+            r["first_call_s"],
+            r["mean_steps"],
+            r["max_steps"],
+            r["us_per_scenario_step"],
+        )
+        assert 0 <= r["stable_fraction"] <= 1
+        assert r["status"] == "-"  # targets are judged at batch >= 1024 only
+    for ctrl in ("aftsc", "asc"):
+        err = res["accuracy"][ctrl]["max_abs_delta_error_rad"]
+        assert math.isfinite(err) and 0 <= err < 1e-5
+
+
+def test_vs_scipy_tiny(started):
+    res = finish(started, "vs_scipy")
+    rows, agreement = res["rows"], res["agreement"]
+    for ctrl in ("aftsc", "asc"):
+        positive(
+            rows[f"{ctrl} smibjax"]["scenarios_per_s"],
+            rows[f"{ctrl} smibjax"]["ratio_vs_fastest_scipy"],
+        )
+        assert rows[f"{ctrl} smibjax"]["status"] in ("met", "MISSED")
+        for method in ("LSODA", "Radau"):
+            r = rows[f"{ctrl} {method}"]
+            positive(r["scenarios_per_s"], r["seconds"], r["smibjax_ratio"])
+            assert r["stopped_or_failed"] == 0
+            a = agreement[ctrl][method]
+            assert a["compared_scenarios"] == 1
+            # same model, same tolerance, two integrators: close agreement
+            assert 0 <= a["scipy_vs_smibjax_rad"] < 1e-4
+            assert 0 <= a["scipy_vs_reference_rad"] < 1e-4
+        assert 0 <= agreement[ctrl]["smibjax_vs_reference_rad"] < 1e-5
+
+
+def test_gradients_tiny(started):
+    res = finish(started, "gradients")
+    positive(
+        res["forward_s"],
+        res["value_and_grad_s"],
+        res["ratio"],
+        res["forward_first_call_s"],
+        res["value_and_grad_first_call_s"],
+        res["grad_norm"],
+    )
+    assert res["loss"] == pytest.approx(res["loss_from_value_and_grad"], rel=1e-9)
+    assert res["dropped_scenarios"] == 0
+    mem = res["memory_mb"]
+    positive(mem["baseline_peak_rss"], mem["forward_peak_rss"], mem["grad_peak_rss"])
+    assert mem["grad_peak_rss"] > mem["baseline_peak_rss"]
+    assert set(res["finite_differences"]) == {"T2", "gamma2"}
+    for r in res["finite_differences"].values():
+        positive(abs(r["autodiff"]), abs(r["finite_difference"]))
+        assert r["relative_error"] < 1e-2
+
+
+def test_compile_tiny(started):
+    res = finish(started, "compile")
+    rows = res["rows"]
+    assert set(rows) == {"simulate cold", "simulate warm"}
+    for r in rows.values():
+        positive(
+            r["process_wall_s"], r["in_python_s"], r["import_s"], r["first_result_s"]
+        )
+        assert r["process_wall_s"] >= r["in_python_s"]
+        assert r["status"] in ("met", "MISSED")
