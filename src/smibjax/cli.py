@@ -34,9 +34,12 @@ def _setup_devices() -> None:
     flags = os.environ.get("XLA_FLAGS", "")
     if "--xla_force_host_platform_device_count" not in flags:
         n = os.cpu_count() or 1
+        # each device's batch runs on its own core: no intra-op threads on top
+        # (measured: AFTSC at batch 4096 on 2 devices, 314 -> 354 scenarios/s)
         os.environ["XLA_FLAGS"] = (
-            f"{flags} --xla_force_host_platform_device_count={n}".strip()
-        )
+            f"{flags} --xla_force_host_platform_device_count={n}"
+            " --xla_cpu_multi_thread_eigen=false"
+        ).strip()
 
 
 def _setup_jax() -> None:
