@@ -65,6 +65,7 @@ def test_gain_space_round_trip_and_sign_crossing():
         (lambda c: c["scenarios"].update(clear_duration=[0.3, 0.1]), "empty range"),
         (lambda c: c["search"].update(elite=16), "must be < search.population"),
         (lambda c: c["search"].update(sigma=0.0), "search.sigma = 0.0"),
+        (lambda c: c["train"].update(t_end=0.5), "after the latest fault time"),
     ],
 )
 def test_bad_configuration_is_one_clear_error(change, match):

@@ -101,6 +101,18 @@ def check_config(cfg: dict) -> None:
     t = cfg["train"]
     req(t["dt"] > 0, "train.dt", t["dt"], "must be > 0")
     req(t["t_end"] > 0 and v["t_end"] > 0, "t_end", t["t_end"], "must be > 0")
+    tf = cfg["scenarios"].get("t_fault")
+    if (
+        isinstance(tf, list)
+        and len(tf) == 2
+        and all(isinstance(x, (int, float)) for x in tf)
+    ):  # (a malformed range is reported by the scenario checks)
+        req(
+            t["t_end"] > tf[1],
+            "train.t_end",
+            t["t_end"],
+            f"must be after the latest fault time (scenarios.t_fault up to {tf[1]:g} s)",
+        )
     req(
         t["input_smoothing"] >= 0,
         "train.input_smoothing",

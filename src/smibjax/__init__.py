@@ -47,7 +47,26 @@ from .simulate import Trajectory, simulate  # noqa: E402
 
 __version__ = "0.1.0"
 
+
+def enable_compilation_cache(path: str | None = None) -> str | None:
+    """Turn on JAX's persistent compilation cache for smibjax's programs, in `path`
+    (default: $SMIBJAX_CACHE_DIR, else ~/.cache/smibjax/jax; an empty
+    SMIBJAX_CACHE_DIR turns it off). Programs that took >= 0.5 s to compile are kept,
+    so a new process skips XLA compilation (tracing still runs). Returns the folder."""
+    from pathlib import Path
+
+    if path is None:
+        path = os.environ.get(
+            "SMIBJAX_CACHE_DIR", str(Path.home() / ".cache" / "smibjax" / "jax")
+        )
+    if path:
+        jax.config.update("jax_compilation_cache_dir", str(path))
+        jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.5)
+    return path or None
+
+
 __all__ = [
+    "enable_compilation_cache",
     "ClosedLoop",
     "Fault",
     "FAULT_NAMES",

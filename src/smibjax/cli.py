@@ -43,15 +43,11 @@ def _setup_devices() -> None:
 
 
 def _setup_jax() -> None:
-    """64-bit mode and the persistent compilation cache (SMIBJAX_CACHE_DIR)."""
-    import jax
+    """The persistent compilation cache (SMIBJAX_CACHE_DIR); importing smibjax has
+    already turned on 64-bit mode."""
+    from . import enable_compilation_cache
 
-    cache = os.environ.get(
-        "SMIBJAX_CACHE_DIR", str(Path.home() / ".cache" / "smibjax" / "jax")
-    )
-    if cache:
-        jax.config.update("jax_compilation_cache_dir", cache)
-        jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.5)
+    enable_compilation_cache()
 
 
 def _add_common(p: argparse.ArgumentParser) -> None:
