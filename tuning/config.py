@@ -101,6 +101,12 @@ def check_config(cfg: dict) -> None:
     t = cfg["train"]
     req(t["dt"] > 0, "train.dt", t["dt"], "must be > 0")
     req(t["t_end"] > 0 and v["t_end"] > 0, "t_end", t["t_end"], "must be > 0")
+    req(
+        isinstance(t["checkpoints"], int) and t["checkpoints"] >= 0,
+        "train.checkpoints",
+        t["checkpoints"],
+        "must be an integer >= 0",
+    )
     tf = cfg["scenarios"].get("t_fault")
     if (
         isinstance(tf, list)

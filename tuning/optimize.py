@@ -121,6 +121,7 @@ def build(cfg):
         tail_weight=float(lw["tail_weight"]),
         cvar_q=float(lw["cvar_q"]),
         val_t_end=float(cfg["validation"]["t_end"]),
+        train_checkpoints=int(cfg["train"]["checkpoints"]) or None,
     )
     dist = FaultDistribution.from_dict(cfg["scenarios"])
     opt = optax.chain(

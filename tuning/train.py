@@ -36,6 +36,7 @@ class Setup:
     tail_weight: float
     cvar_q: float
     val_t_end: float
+    train_checkpoints: int | None = None
 
 
 def train_run(s: Setup, raw, fault: sj.Fault) -> sj.Trajectory:
@@ -49,6 +50,7 @@ def train_run(s: Setup, raw, fault: sj.Fault) -> sj.Trajectory:
         solver="fixed",
         dt=s.train_dt,
         input_smoothing=s.input_smoothing,
+        checkpoints=s.train_checkpoints,
     )
 
 

@@ -37,17 +37,24 @@ from .simulate import simulate
 __all__ = ["critical_clearing_times"]
 
 
-@eqx.filter_jit
-def _stable_batch(params, lanes, *, adaptation: str, t_end: float):
-    """Stable flag of every lane: (gains, fault) batched, (plant, op, init) shared."""
-    plant, op, init = params
-    gains, fault = lanes
+def _stable_batch_fn(plant, op, init, adaptation: str, t_end: float):
+    """Jitted (gains, fault) lanes -> stable flags. The plant, operating point and
+    initial estimates are compile-time constants (XLA folds what derives from them, as
+    in the Monte Carlo engine); one compilation serves every bisection step."""
 
-    def one(g, f):
-        tr = simulate(g, f, plant, op=op, init=init, adaptation=adaptation, t_end=t_end)
-        return metrics(tr).stable
+    @eqx.filter_jit
+    def run(lanes):
+        gains, fault = lanes
 
-    return jax.vmap(one)(gains, fault)
+        def one(g, f):
+            tr = simulate(
+                g, f, plant, op=op, init=init, adaptation=adaptation, t_end=t_end
+            )
+            return metrics(tr).stable
+
+        return jax.vmap(one)(gains, fault)
+
+    return run
 
 
 def critical_clearing_times(
@@ -113,6 +120,8 @@ def critical_clearing_times(
     lam = jnp.asarray([p[1] for p in pairs])
     n_lanes = len(pairs)
 
+    batch_fn = _stable_batch_fn(plant, op, init, adaptation, t_end)
+
     def stable_at(durations: np.ndarray) -> np.ndarray:
         tf = jnp.full(n_lanes, fault_time)
         fault = Fault(
@@ -122,11 +131,7 @@ def critical_clearing_times(
             lam=lam,
             Xf=jnp.full(n_lanes, fault_reactance),
         )
-        out = device_map(
-            lambda p, b: _stable_batch(p, b, adaptation=adaptation, t_end=t_end),
-            (plant, op, init),
-            (gains, fault),
-        )
+        out = device_map(lambda _, b: batch_fn(b), None, (gains, fault))
         return np.asarray(out, dtype=bool)
 
     steps = max(1, math.ceil(math.log2((window - tol) / tol)))

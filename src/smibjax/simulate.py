@@ -121,6 +121,7 @@ def _simulate(
     max_steps: int,
     delta_band: float,
     input_smoothing: float,
+    checkpoints: int | None,
 ) -> Trajectory:
     loop = ClosedLoop(
         gains=gains,
@@ -157,6 +158,7 @@ def _simulate(
         stepsize_controller=controller,
         event=event,
         max_steps=max_steps,
+        adjoint=dfx.RecursiveCheckpointAdjoint(checkpoints=checkpoints),
         throw=False,
     )
     # SaveAt(ts, t1) stores the grid points reached, then the final state (t_end, or the
@@ -223,6 +225,7 @@ def simulate(
     max_steps: int | None = None,
     delta_band: float = DEFAULT_DELTA_BAND,
     input_smoothing: float = 0.0,
+    checkpoints: int | None = None,
 ) -> Trajectory:
     """Simulate the closed loop from the operating point over [0, t_end] (s).
 
@@ -240,6 +243,10 @@ def simulate(
     - `delta_band`: the band (rad) that delta must be back in at t_end to be stable.
     - `input_smoothing`: 0 for the hard input limiter; > 0 (pu) for a soft one that
       keeps gradients beyond the limits (for training losses).
+    - `checkpoints`: solver states kept for the reverse pass (diffrax's
+      `RecursiveCheckpointAdjoint`); None: about log2(max_steps), the least memory and
+      the most recomputation; more trade memory (about 1 kB per checkpoint per
+      scenario) for speed. Values are unaffected.
 
     **Returns:** a `Trajectory`.
     """
@@ -287,4 +294,5 @@ def simulate(
         max_steps=int(max_steps),
         delta_band=float(delta_band),
         input_smoothing=float(input_smoothing),
+        checkpoints=None if checkpoints is None else int(checkpoints),
     )
