@@ -3,7 +3,7 @@
 over all cores, files and all. Prints a table and writes
 benchmarks/results/montecarlo.json and montecarlo.png (the run's own figure).
 
-    python benchmarks/montecarlo.py [--n 100000] [--chunk 4096] [--t-end 10]
+    python benchmarks/montecarlo.py [--n 100000] [--chunk 256] [--t-end 10]
 
 Target (issue 5): 100,000 scenarios at >= 300 scenarios/s on a 2-core machine.
 """
@@ -34,7 +34,7 @@ TARGET = 300.0  # scenarios / s
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--n", type=int, default=100_000)
-    ap.add_argument("--chunk", type=int, default=4096)
+    ap.add_argument("--chunk", type=int, default=256)
     ap.add_argument("--t-end", type=float, default=10.0)
     ap.add_argument("--out", default=str(Path(__file__).parent / "results"))
     args = ap.parse_args()

@@ -7,6 +7,7 @@ t_fault < t_clear <= t_reclose holds by construction.
 from __future__ import annotations
 
 import dataclasses
+import functools
 
 import jax
 
@@ -175,25 +176,39 @@ def sample_scenarios(
         raise ParameterError(
             f"scenario range [{start}, {stop}) is not allowed: need 0 <= start < stop"
         )
-    base = jax.random.PRNGKey(seed)
     fd = dist.faults
     d_rng = dist.D if dist.D is not None else (float(plant.D),) * 2
     p_rng = dist.Pm if dist.Pm is not None else (float(plant.Pm),) * 2
-
-    def one(i):
-        ks = jax.random.split(jax.random.fold_in(base, i), 7)
-
-        def u(k, r):
-            return jax.random.uniform(k, (), minval=r[0], maxval=r[1], dtype=float)
-
-        tf = u(ks[0], fd.t_fault)
-        tc = tf + u(ks[1], fd.clear_duration)
-        tr = tc + u(ks[2], fd.reclose_delay)
-        return (
-            (tf, tc, tr, u(ks[3], fd.fault_location), u(ks[4], fd.fault_reactance)),
-            u(ks[5], d_rng),
-            u(ks[6], p_rng),
-        )
-
-    (tf, tc, tr, lam, xf), D, Pm = jax.vmap(one)(jax.numpy.arange(start, stop))
+    ranges = (fd.t_fault, fd.clear_duration, fd.reclose_delay, fd.fault_location)
+    ranges += (fd.fault_reactance, tuple(d_rng), tuple(p_rng))
+    draw = _sampler(tuple(tuple(float(x) for x in r) for r in ranges), stop - start)
+    tf, tc, tr, lam, xf, D, Pm = draw(
+        jax.numpy.asarray(seed, dtype=jax.numpy.uint32),
+        jax.numpy.asarray(start),
+    )
     return Fault(t_fault=tf, t_clear=tc, t_reclose=tr, lam=lam, Xf=xf), D, Pm
+
+
+@functools.lru_cache(maxsize=16)
+def _sampler(ranges: tuple, count: int):
+    """Jitted draw of `count` consecutive scenarios (compiled once per ranges and
+    count: a Monte Carlo chunk costs no per-op dispatch)."""
+
+    @jax.jit
+    def draw(seed, start):
+        base = jax.random.PRNGKey(seed)
+
+        def one(i):
+            ks = jax.random.split(jax.random.fold_in(base, i), 7)
+
+            def u(k, r):
+                return jax.random.uniform(k, (), minval=r[0], maxval=r[1], dtype=float)
+
+            tf = u(ks[0], ranges[0])
+            tc = tf + u(ks[1], ranges[1])
+            tr = tc + u(ks[2], ranges[2])
+            return (tf, tc, tr, *(u(ks[j], ranges[j]) for j in range(3, 7)))
+
+        return jax.vmap(one)(start + jax.numpy.arange(count))
+
+    return draw
