@@ -12,8 +12,11 @@ from __future__ import annotations
 
 import os
 
+# as `python -m smibjax` sets it: one host device per core, no intra-op threads on top
 os.environ.setdefault(
-    "XLA_FLAGS", f"--xla_force_host_platform_device_count={os.cpu_count()}"
+    "XLA_FLAGS",
+    f"--xla_force_host_platform_device_count={os.cpu_count()}"
+    " --xla_cpu_multi_thread_eigen=false",
 )
 
 import argparse  # noqa: E402
