@@ -50,6 +50,9 @@ TINY = {
     ],
     "gradients": ["--batch", "1", "--t-end", "1.5", "--repeat", "1"],
     "compile": ["--cases", "simulate", "--repeat", "1", "--t-end", "0.5"],
+    "montecarlo": ["--n", "8", "--chunk", "4", "--t-end", "1.0"],
+    "cluster_scaling": ["--n", "8", "--chunk", "4", "--t-end", "1.0", "--workers", "1"]
+    + ["--roundtrips", "3"],
 }
 
 
@@ -187,3 +190,26 @@ def test_compile_tiny(started):
         )
         assert r["process_wall_s"] >= r["in_python_s"]
         assert r["status"] in ("met", "MISSED")
+
+
+def test_montecarlo_tiny(started):
+    res = finish(started, "montecarlo")
+    positive(
+        res["scenarios_per_s"],
+        res["wall_s"],
+        res["first_chunk_s"],
+        res["warm_chunk_s"],
+        res["steps_mean"],
+        res["steps_max"],
+    )
+    assert res["config"]["n"] == 8 and res["config"]["chunk"] == 4
+    assert isinstance(res["met"], bool) and 0 <= res["stable_fraction"] <= 1
+
+
+def test_cluster_scaling_tiny(started):
+    res = finish(started, "cluster_scaling")
+    rows = res["rows"]
+    assert len(rows) >= 3  # in-process on 1 and on all devices, Dask with 1 worker
+    for r in rows.values():
+        positive(r["warm_scenarios_per_s"], r["cold_scenarios_per_s"])
+        assert r["same_rows"] is True
