@@ -30,11 +30,7 @@ def enable_cache() -> str | None:
     """The persistent compilation cache, as the CLI sets it, but only where
     SMIBJAX_CACHE_DIR is set (the tests use it to skip recompiles); returns the folder.
     Timed calls are second calls, which the cache does not change."""
-    cache = os.environ.get("SMIBJAX_CACHE_DIR")
-    if cache:
-        jax.config.update("jax_compilation_cache_dir", cache)
-        jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.5)
-    return cache or None
+    return sj.enable_compilation_cache(os.environ.get("SMIBJAX_CACHE_DIR", ""))
 
 
 def gains(controller: str) -> sj.Gains:

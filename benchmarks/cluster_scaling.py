@@ -22,10 +22,11 @@ import sys
 import time
 from pathlib import Path
 
-os.environ.setdefault(
-    "XLA_FLAGS", f"--xla_force_host_platform_device_count={os.cpu_count()}"
-)
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from smibjax.parallel import use_host_devices  # noqa: E402
+
+use_host_devices()  # one host device per core, before JAX starts its CPU backend
 
 import jax  # noqa: E402
 import matplotlib  # noqa: E402

@@ -10,14 +10,9 @@ Target (issue 5): 100,000 scenarios at >= 300 scenarios/s on a 2-core machine.
 
 from __future__ import annotations
 
-import os
+from smibjax.parallel import use_host_devices  # noqa: E402
 
-# as `python -m smibjax` sets it: one host device per core, no intra-op threads on top
-os.environ.setdefault(
-    "XLA_FLAGS",
-    f"--xla_force_host_platform_device_count={os.cpu_count()}"
-    " --xla_cpu_multi_thread_eigen=false",
-)
+use_host_devices()  # as `python -m smibjax` does, before JAX starts its CPU backend
 
 import argparse  # noqa: E402
 import shutil  # noqa: E402

@@ -16,16 +16,13 @@ benchmarks/results/throughput.json and throughput.png.
 
 from __future__ import annotations
 
-import os
 import sys
 from pathlib import Path
 
+from smibjax.parallel import use_host_devices  # noqa: E402
+
 # One host device per core (at least two), before JAX starts its CPU backend.
-if "--xla_force_host_platform_device_count" not in os.environ.get("XLA_FLAGS", ""):
-    os.environ["XLA_FLAGS"] = (
-        os.environ.get("XLA_FLAGS", "")
-        + f" --xla_force_host_platform_device_count={max(os.cpu_count() or 1, 2)}"
-    ).strip()
+use_host_devices(minimum=2)
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import argparse  # noqa: E402

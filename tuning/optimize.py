@@ -8,14 +8,9 @@ fault scenarios; checkpoints, resume, report.
 
 from __future__ import annotations
 
-import os
+from smibjax.parallel import use_host_devices
 
-# One host device per core, before JAX starts its CPU backend.
-if "--xla_force_host_platform_device_count" not in os.environ.get("XLA_FLAGS", ""):
-    os.environ["XLA_FLAGS"] = (
-        os.environ.get("XLA_FLAGS", "")
-        + f" --xla_force_host_platform_device_count={os.cpu_count() or 1}"
-    ).strip()
+use_host_devices()  # one host device per core, before JAX starts its CPU backend
 
 import argparse  # noqa: E402
 import datetime  # noqa: E402
@@ -379,8 +374,6 @@ def finish(cfg: dict, out: Path, state: dict) -> None:
 
 
 def main(argv=None) -> int:
-    from smibjax.cli import _setup_jax
-
     try:
         args = parse_args(argv)
         cfg = resolve_config(args)
@@ -411,7 +404,7 @@ def main(argv=None) -> int:
                 f"--out {str(out)!r} already holds files: use --resume to "
                 "continue it or choose another folder"
             )
-        _setup_jax()
+        sj.enable_compilation_cache()
         build(cfg)  # validate gains, bounds, scenarios before any work
         out.mkdir(parents=True, exist_ok=True)
         if not args.resume:

@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import sys
 from pathlib import Path
 
@@ -26,28 +25,6 @@ class _Parser(argparse.ArgumentParser):
         raise CLIError(f"{message} (see `python -m smibjax {self._sub} --help`)")
 
     _sub = ""
-
-
-def _setup_devices() -> None:
-    """One XLA host device per core (before JAX starts its CPU backend), so batches
-    are split over all cores (`smibjax.parallel`). Respects a user's XLA_FLAGS."""
-    flags = os.environ.get("XLA_FLAGS", "")
-    if "--xla_force_host_platform_device_count" not in flags:
-        n = os.cpu_count() or 1
-        # each device's batch runs on its own core: no intra-op threads on top
-        # (measured: AFTSC at batch 4096 on 2 devices, 314 -> 354 scenarios/s)
-        os.environ["XLA_FLAGS"] = (
-            f"{flags} --xla_force_host_platform_device_count={n}"
-            " --xla_cpu_multi_thread_eigen=false"
-        ).strip()
-
-
-def _setup_jax() -> None:
-    """The persistent compilation cache (SMIBJAX_CACHE_DIR); importing smibjax has
-    already turned on 64-bit mode."""
-    from . import enable_compilation_cache
-
-    enable_compilation_cache()
 
 
 def _add_common(p: argparse.ArgumentParser) -> None:
@@ -274,10 +251,24 @@ def _runner(args):
     return dask_runner(scheduler=args.scheduler, workers=args.workers)
 
 
-def _cmd_montecarlo(args) -> int:
+def _run_mc(spec, out: Path, resume: bool, runner, title: str):
+    """`run_montecarlo`, with a cluster failure (e.g. a chunk that keeps killing its
+    workers) turned into one line that says how to finish the run."""
     from .montecarlo import run_montecarlo
     from .parameters import ParameterError
 
+    try:
+        return run_montecarlo(spec, out, resume=resume, runner=runner, title=title)
+    except Exception as e:
+        if runner is None or isinstance(e, (CLIError, ParameterError, OSError)):
+            raise
+        raise CLIError(
+            f"the cluster failed ({type(e).__name__}: {e}); the chunks already "
+            f"written are kept: finish with --resume --out {out}"
+        ) from None
+
+
+def _cmd_montecarlo(args) -> int:
     gains, plant, op, init = build_parameters(
         args.controller, args.preset, args.gains, _parse_sets(args.set), complete=True
     )
@@ -287,17 +278,7 @@ def _cmd_montecarlo(args) -> int:
         raise CLIError("--resume needs --out DIR (the folder of the run to finish)")
     title = _title_mc(gains, args)
     with _runner(args) as runner:
-        try:
-            _, summary = run_montecarlo(
-                spec, out, resume=args.resume, runner=runner, title=title
-            )
-        except Exception as e:  # a cluster failure, e.g. a chunk that killed workers
-            if runner is None or isinstance(e, (CLIError, ParameterError, OSError)):
-                raise
-            raise CLIError(
-                f"the cluster failed ({type(e).__name__}: {e}); the chunks already "
-                f"written are kept: finish with --resume --out {out}"
-            ) from None
+        _, summary = _run_mc(spec, out, args.resume, runner, title)
     _print_mc(summary, out)
     return 0
 
@@ -379,14 +360,11 @@ def _print_cct(res: dict) -> None:
         )
 
 
-def _cmd_cct(args) -> int:
+def _run_cct(args, sets, plant, op, init) -> dict:
+    """`critical_clearing_times` with the CCT options of `args`."""
     from .cct import critical_clearing_times
-    from .io import write_json
-    from .plotting import plot_cct
 
-    _check_cct_args(args)
-    sets, (plant, op, init) = _cct_sets(args)
-    res = critical_clearing_times(
+    return critical_clearing_times(
         sets,
         plant,
         op=op,
@@ -394,12 +372,21 @@ def _cmd_cct(args) -> int:
         fault_locations=args.fault_location,
         fault_time=args.fault_time,
         reclose_time=args.reclose_time,
-        fault_reactance=args.fault_reactance,
+        fault_reactance=getattr(args, "fault_reactance", 0.0),
         tol=args.tol,
         adaptation=args.adaptation,
         t_end=args.t_end,
         progress=True,
     )
+
+
+def _cmd_cct(args) -> int:
+    from .io import write_json
+    from .plotting import plot_cct
+
+    _check_cct_args(args)
+    sets, (plant, op, init) = _cct_sets(args)
+    res = _run_cct(args, sets, plant, op, init)
     _print_cct(res)
     if args.out:
         out = Path(args.out)
@@ -411,9 +398,7 @@ def _cmd_cct(args) -> int:
 
 
 def _cmd_compare(args) -> int:
-    from .cct import critical_clearing_times
     from .compare import resolve_gain_set, write_compare
-    from .montecarlo import run_montecarlo
 
     _check_cct_args(args)
     sets = _parse_sets(args.set)
@@ -439,27 +424,10 @@ def _cmd_compare(args) -> int:
             print(f"== {label}")
             spec = _spec_from_args(args, g, plant, op, init, dist)
             sub = out / label
-            r, s = run_montecarlo(
-                spec,
-                sub,
-                resume=args.resume and (sub / "run.json").is_file(),
-                runner=runner,
-                title=label,
-            )
+            resume = args.resume and (sub / "run.json").is_file()
+            r, s = _run_mc(spec, sub, resume, runner, label)
             summaries[label], rows[label] = s, r
-    res = critical_clearing_times(
-        gain_sets,
-        plant,
-        op=op,
-        init=init,
-        fault_locations=args.fault_location,
-        fault_time=args.fault_time,
-        reclose_time=args.reclose_time,
-        tol=args.tol,
-        adaptation=args.adaptation,
-        t_end=args.t_end,
-        progress=True,
-    )
+    res = _run_cct(args, gain_sets, plant, op, init)
     write_compare(out, summaries, rows, res)
     print((out / "compare.md").read_text())
     print(f"wrote {out}/compare.md, compare.json, compare.png")
@@ -610,8 +578,11 @@ def main(argv: list[str] | None = None) -> int:
 
     try:
         args = _parser().parse_args(argv)
-        _setup_devices()
-        _setup_jax()
+        from . import enable_compilation_cache
+        from .parallel import use_host_devices
+
+        use_host_devices()  # before JAX starts its CPU backend
+        enable_compilation_cache()
         return args.func(args)
     except (CLIError, ParameterError) as e:
         print(f"smibjax: error: {e}", file=sys.stderr)

@@ -11,7 +11,14 @@ import jax.numpy as jnp
 from jaxtyping import Array, Bool, Float
 
 from .controller import adaptation_rate, control_law
-from .network import Stage, fault_stage, postfault_stage, prefault_stage, stage_at
+from .network import (
+    Stage,
+    by_stage,
+    fault_stage,
+    postfault_stage,
+    prefault_stage,
+    stage_at,
+)
 from .parameters import Fault, Gains, InitialEstimates, OperatingPoint, Plant
 from .plant import (
     apply_limits,
@@ -139,11 +146,8 @@ def healthy(
     fraction of the cost inside the solver's loop.
     """
     delta, E, B = y[0], y[2], y[3]
-    f = loop.fault
-    in_fault = (t >= f.t_fault) & (t < f.t_clear)
-    in_post = (t >= f.t_clear) & (t < f.t_reclose)
     b = loop.b_max
-    b_lim = jnp.where(in_fault, b[1], jnp.where(in_post, b[2], b[0]))
+    b_lim = by_stage(t, loop.fault, b[0], b[1], b[2])
     return (
         jnp.isfinite(jnp.sum(y[:N_DYNAMIC]))
         & (delta > DELTA_MARGIN)

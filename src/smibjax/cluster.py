@@ -102,8 +102,9 @@ def _setup_worker() -> None:
         jax.config.update("jax_platforms", platforms)
     cache = os.environ.get("JAX_COMPILATION_CACHE_DIR")
     if cache and not jax.config.jax_compilation_cache_dir:
-        jax.config.update("jax_compilation_cache_dir", cache)
-        jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.5)
+        from . import enable_compilation_cache
+
+        enable_compilation_cache(cache)
 
 
 def _run_chunk(spec: MonteCarloSpec, k: int) -> dict:

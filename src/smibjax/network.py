@@ -8,12 +8,20 @@ an extra shunt susceptance at m caused by the fault (MODEL.md section 1).
 from __future__ import annotations
 
 import equinox as eqx
+import jax
 import jax.numpy as jnp
 from jaxtyping import Array, Float
 
 from .parameters import Fault, Plant
 
-__all__ = ["Stage", "prefault_stage", "fault_stage", "postfault_stage", "stage_at"]
+__all__ = [
+    "Stage",
+    "prefault_stage",
+    "fault_stage",
+    "postfault_stage",
+    "stage_at",
+    "by_stage",
+]
 
 Scalar = Float[Array, "*batch"]
 
@@ -53,19 +61,25 @@ def fault_stage(plant: Plant, lam: Scalar, Xf: Scalar) -> Stage:
     return Stage(X2=x2, Bf=-zb / s)
 
 
+def by_stage(t: Scalar, fault: Fault, pre, during, post):
+    """Whichever of `pre`, `during`, `post` (pytrees of one structure, e.g. stages or
+    per-stage limits) is in force at time t (s): `pre` before t_fault and again from
+    t_reclose, `during` in [t_fault, t_clear), `post` in [t_clear, t_reclose)."""
+    in_fault = (t >= fault.t_fault) & (t < fault.t_clear)
+    in_post = (t >= fault.t_clear) & (t < fault.t_reclose)
+    return jax.tree_util.tree_map(
+        lambda a, b, c: jnp.where(in_fault, b, jnp.where(in_post, c, a)),
+        pre,
+        during,
+        post,
+    )
+
+
 def stage_at(t: Scalar, fault: Fault, plant: Plant, flt: Stage | None = None) -> Stage:
     """The stage in force at time t (s): pre-fault for t < t_fault, fault for
     t_fault <= t < t_clear, post-fault for t_clear <= t < t_reclose, restored after.
     `flt`, if given, is `fault_stage(plant, fault.lam, fault.Xf)` computed beforehand
     (the solver's loop does not hoist it)."""
-    pre = prefault_stage(plant)
     if flt is None:
         flt = fault_stage(plant, fault.lam, fault.Xf)
-    post = postfault_stage(plant)
-    in_fault = (t >= fault.t_fault) & (t < fault.t_clear)
-    in_post = (t >= fault.t_clear) & (t < fault.t_reclose)
-
-    def pick(a, b, c):
-        return jnp.where(in_fault, b, jnp.where(in_post, c, a))
-
-    return Stage(X2=pick(pre.X2, flt.X2, post.X2), Bf=pick(pre.Bf, flt.Bf, post.Bf))
+    return by_stage(t, fault, prefault_stage(plant), flt, postfault_stage(plant))

@@ -17,7 +17,24 @@ from functools import lru_cache
 import jax
 import jax.numpy as jnp
 
-__all__ = ["device_map", "split_batch"]
+__all__ = ["device_map", "split_batch", "use_host_devices"]
+
+
+def use_host_devices(minimum: int = 1) -> None:
+    """Ask XLA for one CPU host device per core (at least `minimum`), each without
+    intra-op threads on top (measured: AFTSC at batch 4096 on 2 devices, 314 -> 354
+    scenarios/s). Takes effect only before JAX starts its CPU backend (importing
+    smibjax does not start it); a device count already in XLA_FLAGS is respected."""
+    import os
+
+    flags = os.environ.get("XLA_FLAGS", "")
+    if "--xla_force_host_platform_device_count" in flags:
+        return
+    n = max(os.cpu_count() or 1, minimum)
+    os.environ["XLA_FLAGS"] = (
+        f"{flags} --xla_force_host_platform_device_count={n}"
+        " --xla_cpu_multi_thread_eigen=false"
+    ).strip()
 
 
 @lru_cache(maxsize=8)
