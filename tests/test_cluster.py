@@ -122,3 +122,17 @@ def test_missing_extra(monkeypatch, tmp_path, capsys):
     assert main(["montecarlo", "--n", "4", "--workers", "2", "--out", str(out)]) == 2
     assert capsys.readouterr().err.strip() == f"smibjax: error: {msg}"
     assert not out.exists()
+
+
+def test_bad_scheduler_address_is_one_line(tmp_path, capsys):
+    from smibjax.cli import main
+
+    out = tmp_path / "o"
+    assert (
+        main(["montecarlo", "--n", "4", "--scheduler", "nonsense::", "--out", str(out)])
+        == 2
+    )
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "cannot connect to a Dask scheduler" in err
+    assert main(["montecarlo", "--n", "4", "--workers", "0", "--out", str(out)]) == 2
+    assert "--workers 0 is not allowed" in capsys.readouterr().err

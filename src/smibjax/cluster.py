@@ -184,5 +184,11 @@ def dask_runner(
             )
             client = stack.enter_context(distributed.Client(cluster))
         else:
-            client = stack.enter_context(distributed.Client(scheduler))
+            try:
+                client = stack.enter_context(distributed.Client(scheduler, timeout=20))
+            except (OSError, ValueError, TypeError) as e:  # unreachable or malformed
+                raise ParameterError(
+                    f"--scheduler {scheduler!r}: cannot connect to a Dask scheduler "
+                    f"there ({type(e).__name__}: {e})"
+                ) from None
         yield DaskRunner(client, retries=retries)
