@@ -15,6 +15,7 @@ import jax
 import numpy as np
 
 import smibjax as sj
+from smibjax.controller import static_alpha
 from smibjax.metrics import metrics
 from smibjax.scenarios import FaultDistribution, sample_faults
 
@@ -64,11 +65,14 @@ def host_devices(k: int) -> list:
     return devs[:k]
 
 
-def batched_metrics(t_end: float):
+def batched_metrics(t_end: float, alpha_one: bool = False):
     """jit(vmap(simulate + metrics)): (gains, faults) -> (stable, settling time of
-    delta (s), accepted steps), default adaptive solver."""
+    delta (s), accepted steps), default adaptive solver. `alpha_one`: the gains are
+    ASC's (alpha = 1, compiled in as the Monte Carlo engine does)."""
 
     def one(g, f):
+        # alpha = 1 (ASC) compiled in, as the Monte Carlo and CCT engines do.
+        g = static_alpha(g, alpha_one)
         tr = sj.simulate(g, f, t_end=t_end)
         m = metrics(tr)
         return m.stable, m.settling_delta, tr.num_steps

@@ -81,11 +81,11 @@ def parse_args(argv=None):
 def main(argv=None) -> None:
     args = parse_args(argv)
     cache = enable_cache()
-    fn = batched_metrics(args.t_end)
     pool = scenarios(args.seed, max(max(args.batches), args.n_check))
     rows, accuracy = [], {}
     for ctrl in args.controllers:
         g = gains(ctrl)
+        fn = batched_metrics(args.t_end, alpha_one=ctrl == "asc")
         if args.n_check > 0:
             err = np.abs(
                 deltas(g, pool, args.n_check, args.t_end, tight=False)[0]
@@ -101,7 +101,7 @@ def main(argv=None) -> None:
             for batch in args.batches:
                 faults = take(pool, batch)
 
-                def call(g=g, faults=faults, devs=devs):
+                def call(g=g, faults=faults, devs=devs, fn=fn):
                     return jax.block_until_ready(device_map(fn, g, faults, devs))
 
                 first, best, (stable, settling, steps) = timed(call, args.repeat)

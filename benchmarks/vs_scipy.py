@@ -157,18 +157,18 @@ def main(argv=None) -> None:
     cache = enable_cache()
     check_same_model()
     devs = host_devices(args.devices)
-    fn = batched_metrics(args.t_end)
     pool = scenarios(args.seed, max(args.batch, args.n_scipy))
     plant = {n: float(getattr(sj.Plant(), n)) for n in sj.PLANT_NAMES}
     rows, agreement = {}, {}
     for ctrl in args.controllers:
         g = gains(ctrl)
+        fn = batched_metrics(args.t_end, alpha_one=ctrl == "asc")
         gd = {n: float(getattr(g, n)) for n in sj.GAIN_NAMES}
 
         # smibjax: one batch call over the devices (best of --repeat after warm-up)
         faults = take(pool, args.batch)
         first, best, out = timed(
-            lambda g=g, faults=faults: jax.block_until_ready(
+            lambda g=g, faults=faults, fn=fn: jax.block_until_ready(
                 device_map(fn, g, faults, devs)
             ),
             args.repeat,

@@ -91,3 +91,31 @@ def test_operating_point_is_a_closed_loop_equilibrium(adaptation):
         (1.4 * float(y[2]) - 0.9 * np.cos(0.4964)) / 0.5
     )
     assert float(out.u_r) == pytest.approx(0.0, abs=1e-12)
+
+
+def test_static_alpha_one_drops_the_signed_powers_and_changes_no_value():
+    """ASC with alpha = 1 compiled in: the same field to rounding, no log/exp left."""
+    g = sj.Gains.paper("asc", beta1=-1.0, beta2=-1.0)
+    fixed = sj.controller.static_alpha(g)
+    assert fixed.alpha == 1.0 and isinstance(fixed.alpha, float)
+    # AFTSC, and alpha = 1 that is traced, are left alone.
+    aftsc = sj.Gains.paper("aftsc")
+    assert sj.controller.static_alpha(aftsc) is aftsc
+    seen = []
+    jax.jit(lambda gg: seen.append(sj.controller.static_alpha(gg).alpha) or 0.0)(g)
+    assert isinstance(seen[0], jax.core.Tracer)
+
+    fault, plant, op = sj.Fault(), sj.Plant(), sj.OperatingPoint()
+    y = jnp.array([0.7, 0.4, 1.3, 0.2, -0.3, 0.8, 0.0, 0.0])
+
+    def field(gains):
+        loop = ClosedLoop(gains, fault, plant, op)
+        return closed_loop_vector_field(jnp.asarray(0.9), y, loop)
+
+    traced = jax.jit(field)
+    static = jax.jit(lambda: field(fixed))
+    np.testing.assert_allclose(static(), traced(g), rtol=1e-13, atol=1e-13)
+    # spow lowers to log + exp; with alpha = 1 compiled in neither is left.
+    assert "log" in traced.lower(g).as_text()
+    assert "log" not in static.lower().as_text()
+    assert "exponential" not in static.lower().as_text()

@@ -22,6 +22,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .controller import static_alpha
 from .metrics import metrics
 from .parallel import device_map
 from .parameters import (
@@ -37,16 +38,20 @@ from .simulate import simulate
 __all__ = ["critical_clearing_times"]
 
 
-def _stable_batch_fn(plant, op, init, adaptation: str, t_end: float):
+def _stable_batch_fn(
+    plant, op, init, adaptation: str, t_end: float, alpha_one: bool = False
+):
     """Jitted (gains, fault) lanes -> stable flags. The plant, operating point and
     initial estimates are compile-time constants (XLA folds what derives from them, as
-    in the Monte Carlo engine); one compilation serves every bisection step."""
+    in the Monte Carlo engine); one compilation serves every bisection step.
+    `alpha_one`: every lane has alpha = 1 (compiled without signed powers)."""
 
     @eqx.filter_jit
     def run(lanes):
         gains, fault = lanes
 
         def one(g, f):
+            g = static_alpha(g, alpha_one)
             tr = simulate(
                 g, f, plant, op=op, init=init, adaptation=adaptation, t_end=t_end
             )
@@ -120,7 +125,8 @@ def critical_clearing_times(
     lam = jnp.asarray([p[1] for p in pairs])
     n_lanes = len(pairs)
 
-    batch_fn = _stable_batch_fn(plant, op, init, adaptation, t_end)
+    alpha_one = all(float(gain_sets[n].alpha) == 1.0 for n in names)
+    batch_fn = _stable_batch_fn(plant, op, init, adaptation, t_end, alpha_one)
 
     def stable_at(durations: np.ndarray) -> np.ndarray:
         tf = jnp.full(n_lanes, fault_time)

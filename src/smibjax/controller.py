@@ -13,6 +13,7 @@ from __future__ import annotations
 
 from typing import NamedTuple
 
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 from jaxtyping import Array, Float
@@ -23,6 +24,7 @@ from .plant import plant_vector_field
 
 __all__ = [
     "spow",
+    "static_alpha",
     "paper_coordinates",
     "drift_and_gain",
     "drift_and_gain_closed_form",
@@ -39,14 +41,41 @@ Scalar = Float[Array, ""]
 SPOW_DERIVATIVE_FLOOR = 1e-9
 
 
-@jax.custom_jvp
-def spow(y: Array, a: Array) -> Array:
+def spow(y: Array, a: Array | float) -> Array:
     """Signed power sign(y) |y|^a (exact forward value).
 
     Its derivative in y, a |y|^(a-1), is floored at |y| = `SPOW_DERIVATIVE_FLOOR` so
     that gradients stay finite for a < 1; the derivative in a is
-    sign(y) |y|^a log|y| (0 at y = 0).
+    sign(y) |y|^a log|y| (0 at y = 0). With `a` the Python number 1 (a static
+    exponent, see `static_alpha`) it is y itself, and no log or exp is compiled.
     """
+    if isinstance(a, (int, float)) and a == 1:
+        return y
+    return _spow(y, a)
+
+
+def static_alpha(gains: Gains, alpha_one: bool | None = None) -> Gains:
+    """`gains` with alpha as the static Python number 1.0 where alpha = 1 (ASC).
+
+    A compiled program then computes spow(y, 1) as y: the four signed powers (a log
+    and an exp each, float64) were 40% of a field evaluation. `alpha_one=None`
+    decides from the value, which must then be concrete (not traced) and scalar, and
+    leaves `gains` unchanged otherwise; inside a traced function pass what is known
+    outside it (`True` replaces alpha whatever its value: the caller vouches for it).
+    Gradients with respect to alpha need it traced: do not pass `True` then.
+    """
+    if alpha_one is None:
+        a = gains.alpha
+        if isinstance(a, jax.core.Tracer) or jnp.ndim(a) != 0:
+            return gains
+        alpha_one = float(a) == 1.0
+    if not alpha_one:
+        return gains
+    return eqx.tree_at(lambda g: g.alpha, gains, 1.0)
+
+
+@jax.custom_jvp
+def _spow(y: Array, a: Array) -> Array:
     return _spow_value(y, a)
 
 
@@ -59,7 +88,7 @@ def _spow_value(y, a):
     return jnp.where(pos, jnp.sign(y) * mag, 0.0)
 
 
-@spow.defjvp
+@_spow.defjvp
 def _spow_jvp(primals, tangents):
     y, a = primals
     ty, ta = tangents

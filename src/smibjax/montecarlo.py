@@ -25,6 +25,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .controller import static_alpha
 from .io import write_json, write_npz, write_text
 from .metrics import metrics
 from .parallel import device_map
@@ -158,7 +159,17 @@ class MonteCarloSpec:
 
 
 @functools.lru_cache(maxsize=8)
-def _engine(adaptation, t_end, dt_save, rtol, atol, max_steps, fixed: str, draw: bool):
+def _engine(
+    adaptation,
+    t_end,
+    dt_save,
+    rtol,
+    atol,
+    max_steps,
+    fixed: str,
+    draw: bool,
+    alpha_one: bool = False,
+):
     """The jitted batch function for one solver configuration and one (plant,
     operating point, initial estimates), compiled once per process and batch shape,
     then reused for every chunk; the gains stay arguments (one program for any gain
@@ -167,7 +178,8 @@ def _engine(adaptation, t_end, dt_save, rtol, atol, max_steps, fixed: str, draw:
     The plant, operating point and initial estimates (`fixed`, their JSON) are
     compile-time constants: XLA then folds every quantity derived from them instead of
     recomputing it in each field evaluation inside the solver's loop (measured: twice
-    the throughput). Where D and Pm are drawn (`draw`), those two are per-scenario."""
+    the throughput). Where D and Pm are drawn (`draw`), those two are per-scenario.
+    `alpha_one` (ASC): alpha = 1 is compiled in, and the signed powers with it."""
     tables = json.loads(fixed)
     plant = Plant(**{k: float(v) for k, v in tables["plant"].items()})
     op = OperatingPoint(**{k: float(v) for k, v in tables["op"].items()})
@@ -176,6 +188,7 @@ def _engine(adaptation, t_end, dt_save, rtol, atol, max_steps, fixed: str, draw:
     @eqx.filter_jit
     def run(gains, scenarios):
         faults, D, Pm = scenarios
+        gains = static_alpha(gains, alpha_one)
 
         def one(fault, d, pm):
             p = eqx.tree_at(lambda q: (q.D, q.Pm), plant, (d, pm)) if draw else plant
@@ -250,6 +263,7 @@ def compute_chunk(spec: MonteCarloSpec, k: int, devices=None) -> dict[str, np.nd
         spec.max_steps,
         fixed,
         draw,
+        float(params[0].alpha) == 1.0,
     )
     out = device_map(fn, params[0], scen, devices)
     m = stop - start

@@ -40,7 +40,7 @@ from .closed_loop import (
     healthy,
     initial_state,
 )
-from .controller import control_law
+from .controller import control_law, static_alpha
 from .network import prefault_stage, stage_at
 from .parameters import (
     Fault,
@@ -250,7 +250,8 @@ def simulate(
 
     **Returns:** a `Trajectory`.
     """
-    gains = Gains() if gains is None else gains
+    # alpha = 1 known here (ASC, concrete gains): compile spow(y, 1) as y.
+    gains = static_alpha(Gains() if gains is None else gains)
     fault = Fault() if fault is None else fault
     plant = Plant() if plant is None else plant
     op = OperatingPoint() if op is None else op
