@@ -82,7 +82,7 @@ def parse_args(argv=None):
         default=["T2", "gamma2"],
         help="raw parameters to check by central differences",
     )
-    ap.add_argument("--fd-eps", type=float, default=1e-4, help="step in raw units")
+    ap.add_argument("--fd-eps", type=float, default=1e-6, help="step in raw units")
     ap.add_argument("--out", default=str(DEFAULT_OUT))
     ap.add_argument("--child", choices=["forward", "grad"], help=argparse.SUPPRESS)
     return ap.parse_args(argv)

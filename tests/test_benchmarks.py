@@ -51,6 +51,7 @@ TINY = {
     "gradients": ["--batch", "1", "--t-end", "1.5", "--repeat", "1"],
     "compile": ["--cases", "simulate", "--repeat", "1", "--t-end", "0.5"],
     "montecarlo": ["--n", "8", "--chunk", "4", "--t-end", "1.0"],
+    "stiff_solvers": ["--methods", "RK45", "Radau", "--t-end", "1.0"],
     "cluster_scaling": ["--n", "8", "--chunk", "4", "--t-end", "1.0", "--workers", "1"]
     + ["--roundtrips", "3"],
 }
@@ -213,3 +214,14 @@ def test_cluster_scaling_tiny(started):
     for r in rows.values():
         positive(r["warm_scenarios_per_s"], r["cold_scenarios_per_s"])
         assert r["same_rows"] is True
+
+
+def test_stiff_solvers_tiny(started):
+    res = finish(started, "stiff_solvers")
+    for ctrl in ("aftsc", "asc"):
+        for method in ("RK45", "Radau"):
+            r = res["rows"][ctrl][method]
+            assert r["steps"] > 0 and r["nfev"] > r["steps"]
+            assert (r["njev"] > 0) == (method == "Radau")
+        # two integrators of one model at one tolerance: the same end state
+        assert 0 <= res["delta_end_spread_rad"][ctrl] < 1e-4

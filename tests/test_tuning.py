@@ -110,14 +110,24 @@ def test_training_gradient_matches_finite_differences(start):
     step = make_train_step(setup)
     faults = sample_faults(jax.random.PRNGKey(7), 2, dist)
     raw = space.to_raw(init)
-    _, _, _, _, grad, dropped = step(raw, faults)
+    loss0, _, _, _, grad, dropped = step(raw, faults)
     assert dropped == 0
-    for name, h in (("beta1", 1e-5), ("T2", 1e-5)):
+    for name in ("beta1", "T2"):
 
         def f(v, name=name):
             return float(step({**raw, name: v}, faults)[0])
 
-        fd = (f(raw[name] + h) - f(raw[name] - h)) / (2 * h)
+        # A run that loses synchronism makes the loss jump where its stop moves past a
+        # sample time; difference where the loss is smooth: the first step h at which
+        # the forward and backward differences agree.
+        for h in (1e-5, 1e-6, 1e-7):
+            lp, lm = f(raw[name] + h), f(raw[name] - h)
+            fwd, bwd = (lp - float(loss0)) / h, (float(loss0) - lm) / h
+            if abs(fwd - bwd) <= 1e-2 * max(abs(fwd), abs(bwd)) + 1e-6:
+                break
+        else:
+            pytest.fail(f"{name}: the loss is not smooth at any tried step")
+        fd = (lp - lm) / (2 * h)
         assert math.isfinite(float(grad[name]))
         assert float(grad[name]) == pytest.approx(fd, rel=2e-3, abs=1e-6), name
 
