@@ -71,16 +71,31 @@ def solve_fixed(
     """
     grid0, index0 = base_grid(t_end, dt, ts)
     sw = jnp.sort(jnp.clip(switch, 0.0, t_end))
-    grid = jnp.sort(jnp.concatenate([jnp.asarray(grid0), sw]))
-    # Sample j sits after the switch times <= ts_j: a tie puts the sample at the
-    # switch, which is the same state.
-    index = jnp.asarray(index0) + jnp.sum(sw[None, :] <= jnp.asarray(ts)[:, None], 1)
+    # A stable sort puts a grid point tied with a switch time before the switch point:
+    # the step between them has zero length but ends on the switch, so its length
+    # (and d/d(switch time)) belongs to the stage before the switch; a sample at a
+    # tied time reads the grid point, which does not move with the switch.
+    times = jnp.concatenate([jnp.asarray(grid0), sw])
+    perm = jnp.argsort(times, stable=True)
+    grid = times[perm]
+    is_switch = perm >= grid0.shape[0]
+    index = jnp.asarray(index0) + jnp.sum(sw[None, :] < jnp.asarray(ts)[:, None], 1)
     n_steps = grid.shape[0] - 1
     n_blocks = -(-n_steps // block)
     pad = n_blocks * block - n_steps
     ta = jnp.concatenate([grid[:-1], jnp.full(pad, t_end)])
     tb = jnp.concatenate([grid[1:], jnp.full(pad, t_end)])
-    jump = jnp.any(ta[:, None] == sw[None, :], axis=1)
+    jump = jnp.concatenate([is_switch[:-1], jnp.zeros(pad, bool)])
+    ends_on_switch = jnp.concatenate([is_switch[1:], jnp.zeros(pad, bool)])
+    # The time that selects a step's stage: its midpoint; for a zero-length step
+    # ending on a switch, just before it.
+    # (It only selects a stage: no derivative flows through it.)
+    ta_, tb_ = jax.lax.stop_gradient((ta, tb))
+    stage_t = jnp.where(
+        tb_ > ta_,
+        0.5 * (ta_ + tb_),
+        jnp.where(ends_on_switch, jnp.nextafter(ta_, -jnp.inf), ta_),
+    )
 
     solver = dfx.Tsit5() if solver is None else solver
     term = dfx.ODETerm(lambda t, y, args: field(args[1], y, args[0]))
@@ -88,8 +103,7 @@ def solve_fixed(
 
     def step(carry, x):
         y, state, alive, t_stop, count = carry
-        t0, t1, made_jump = x
-        mid = 0.5 * (t0 + t1)
+        t0, t1, made_jump, mid = x
         y1, _, _, state1, _ = solver.step(
             term, t0, t1, y, (loop, mid), state, made_jump
         )
@@ -109,7 +123,7 @@ def solve_fixed(
     def run_block(carry, xs):
         return jax.lax.scan(step, carry, xs)
 
-    xs = (ta, tb, jump)
+    xs = (ta, tb, jump, stage_t)
     xs = jax.tree_util.tree_map(lambda a: a.reshape(n_blocks, block), xs)
     carry0 = (y0, state0, jnp.asarray(True), jnp.asarray(0.0), jnp.asarray(0))
     (y_end, _, alive, t_stop, count), ys = jax.lax.scan(run_block, carry0, xs)
