@@ -79,13 +79,18 @@ def _spow(y: Array, a: Array) -> Array:
     return _spow_value(y, a)
 
 
-def _spow_value(y, a):
-    """sign(y) |y|^a as exp(a log|y|): one log and one exp, cheaper than XLA's
-    float64 pow (which checks special cases); exactly 0 at y = 0."""
+def _spow_parts(y, a):
+    """(sign(y) |y|^a, log|y| (0 at y = 0), |y|^a): one log and one exp, cheaper
+    than XLA's float64 pow (which checks special cases); exactly 0 at y = 0."""
     ay = jnp.abs(y)
     pos = ay > 0
-    mag = jnp.exp(a * jnp.log(jnp.where(pos, ay, 1.0)))
-    return jnp.where(pos, jnp.sign(y) * mag, 0.0)
+    log_ay = jnp.log(jnp.where(pos, ay, 1.0))
+    mag = jnp.exp(a * log_ay)
+    return jnp.where(pos, jnp.sign(y) * mag, 0.0), log_ay, mag
+
+
+def _spow_value(y, a):
+    return _spow_parts(y, a)[0]
 
 
 @_spow.defjvp
@@ -93,10 +98,16 @@ def _spow_jvp(primals, tangents):
     y, a = primals
     ty, ta = tangents
     ay = jnp.abs(y)
-    out = _spow_value(y, a)
-    dy = a * jnp.maximum(ay, SPOW_DERIVATIVE_FLOOR) ** (a - 1)
-    safe = jnp.where(ay > 0, ay, 1.0)
-    da = jnp.where(ay > 0, out * jnp.log(safe), 0.0)
+    out, log_ay, mag = _spow_parts(y, a)
+    # a |y|^(a-1) = a |y|^a / |y| above the floor (no second power), and the
+    # floor's value below it.
+    above = ay > SPOW_DERIVATIVE_FLOOR
+    dy = jnp.where(
+        above,
+        a * mag / jnp.where(above, ay, 1.0),
+        a * jnp.exp((a - 1) * jnp.log(SPOW_DERIVATIVE_FLOOR)),
+    )
+    da = out * log_ay  # 0 at y = 0, where log_ay = 0
     return out, dy * ty + da * ta
 
 
