@@ -142,6 +142,7 @@ def test_summary_statistics():
     rows = {
         "stable": (rng.random(n) < 0.9).astype(int),
         "lost_sync": np.zeros(n, int),
+        "budget_exhausted": (rng.random(n) < 0.05).astype(int),
         "settling_time": rng.random(n) * 5,
         "settling_Vt": rng.random(n),
         "overshoot": rng.random(n),
@@ -150,6 +151,7 @@ def test_summary_statistics():
     s = summarize(rows)
     st = rows["stable"].astype(bool)
     assert s["stable"] == st.sum() and s["stable_fraction"] == st.mean()
+    assert s["budget_exhausted"] == rows["budget_exhausted"].sum() > 0
     ts = rows["settling_time"][st]
     assert s["settling_time"]["p95"] == pytest.approx(np.quantile(ts, 0.95))
     assert s["settling_time"]["mean"] == pytest.approx(ts.mean())
@@ -290,3 +292,23 @@ def test_compare_and_montecarlo_commands(reference_run, tmp_path, capsys):
     ).read_text()
     assert (cmp / "compare.png").stat().st_size > 10_000
     assert not math.isnan(data["montecarlo"]["tuned"]["settling_time"]["mean"])
+
+
+def test_runs_that_spend_the_step_budget_are_counted_apart(tmp_path, capsys):
+    from smibjax.cli import main
+
+    out = tmp_path / "budget"
+    args = ["montecarlo", "--n", "4", "--chunk", "4", "--t-end", "2", "--max-steps"]
+    assert (
+        main(
+            [*args, "300", "--set", "beta1=-1", "--set", "beta2=-1", "--out", str(out)]
+        )
+        == 0
+    )
+    assert "raise --max-steps" in capsys.readouterr().err
+    rows = read_rows(out / "scenarios.csv")
+    assert list(rows["budget_exhausted"]) == [1, 1, 1, 1]
+    assert not rows["stable"].any() and not rows["lost_sync"].any()
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["budget_exhausted"] == 4 and summary["stable"] == 0
+    assert main(["montecarlo", "--max-steps", "0", "--out", str(tmp_path / "x")]) == 2

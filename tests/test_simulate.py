@@ -119,8 +119,26 @@ def test_fixed_step_solver_agrees_with_adaptive(jax_runs):
         ({"solver": "euler"}, "solver = 'euler'"),
         ({"adaptation": "magic"}, "adaptation = 'magic'"),
         ({"dt_save": 20.0}, "dt_save = 20"),
+        ({"max_steps": 0}, "max_steps = 0"),
     ],
 )
 def test_bad_simulate_options(kw, match):
     with pytest.raises(sj.ParameterError, match=match):
         sj.simulate(**kw)
+
+
+def test_a_spent_step_budget_is_neither_stable_nor_lost():
+    """A stable case cut off by max_steps: its own outcome, finite, samples held."""
+    tr = sj.simulate(sj.Gains.paper("aftsc", **STABLE), t_end=6.0, max_steps=300)
+    assert bool(tr.budget_exhausted) and not bool(tr.lost_sync)
+    assert not bool(tr.stable) and not bool(sj.metrics(tr).stable)
+    assert int(tr.num_steps) + int(tr.num_rejected) == 300
+    t_stop = float(tr.t_stop)
+    assert 0.0 < t_stop < 6.0
+    after = np.asarray(tr.t) > t_stop
+    assert after.sum() > 10
+    assert np.all(np.asarray(tr.delta)[after] == np.asarray(tr.delta)[after][0])
+    for leaf in jax.tree_util.tree_leaves(tr):
+        assert np.all(np.isfinite(np.asarray(leaf, dtype=float)))
+    full = sj.simulate(sj.Gains.paper("aftsc", **STABLE), t_end=6.0)
+    assert not bool(full.budget_exhausted) and bool(full.stable)

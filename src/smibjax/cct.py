@@ -39,7 +39,13 @@ __all__ = ["critical_clearing_times"]
 
 
 def _stable_batch_fn(
-    plant, op, init, adaptation: str, t_end: float, alpha_one: bool = False
+    plant,
+    op,
+    init,
+    adaptation: str,
+    t_end: float,
+    alpha_one: bool = False,
+    max_steps: int = 50_000,
 ):
     """Jitted (gains, fault) lanes -> stable flags. The plant, operating point and
     initial estimates are compile-time constants (XLA folds what derives from them, as
@@ -53,7 +59,14 @@ def _stable_batch_fn(
         def one(g, f):
             g = static_alpha(g, alpha_one)
             tr = simulate(
-                g, f, plant, op=op, init=init, adaptation=adaptation, t_end=t_end
+                g,
+                f,
+                plant,
+                op=op,
+                init=init,
+                adaptation=adaptation,
+                t_end=t_end,
+                max_steps=max_steps,
             )
             return metrics(tr).stable
 
@@ -75,6 +88,7 @@ def critical_clearing_times(
     tol: float = 1e-3,
     adaptation: str = "oracle",
     t_end: float = 10.0,
+    max_steps: int = 50_000,
     progress: bool = False,
 ) -> dict:
     """CCT (s) of every gain set at every fault location.
@@ -126,7 +140,11 @@ def critical_clearing_times(
     n_lanes = len(pairs)
 
     alpha_one = all(float(gain_sets[n].alpha) == 1.0 for n in names)
-    batch_fn = _stable_batch_fn(plant, op, init, adaptation, t_end, alpha_one)
+    if isinstance(max_steps, bool) or not isinstance(max_steps, int) or max_steps < 1:
+        raise ParameterError(f"max_steps = {max_steps!r} is not allowed: must be >= 1")
+    batch_fn = _stable_batch_fn(
+        plant, op, init, adaptation, t_end, alpha_one, max_steps
+    )
 
     def stable_at(durations: np.ndarray) -> np.ndarray:
         tf = jnp.full(n_lanes, fault_time)

@@ -54,6 +54,17 @@ def _add_common(p: argparse.ArgumentParser) -> None:
         default="oracle",
         help="oracle (paper, uses the true theta) or realizable (k1=k2=0)",
     )
+    _add_max_steps(p)
+
+
+def _add_max_steps(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--max-steps",
+        type=int,
+        default=50_000,
+        help="adaptive solver step budget per run (default 50000); a run that spends "
+        "it is reported as such, not as stable",
+    )
 
 
 def _parse_sets(items: list[str]) -> dict[str, float]:
@@ -141,6 +152,7 @@ def _cmd_simulate(args) -> int:
         adaptation=args.adaptation,
         t_end=args.t_end,
         dt_save=args.dt_save,
+        max_steps=args.max_steps,
     )
     m = metrics(traj)
     print(format_summary(gains, fault, plant, traj, m, args))
@@ -230,6 +242,7 @@ def _spec_from_args(args, gains, plant, op, init, dist):
         dist=dist.to_dict(),
         adaptation=args.adaptation,
         t_end=args.t_end,
+        max_steps=args.max_steps,
     )
 
 
@@ -305,6 +318,12 @@ def _print_mc(summary: dict, out: Path) -> None:
             f"delta settling time (stable): mean {st['mean']:.3f} s, p50 "
             f"{st['p50']:.3f} s, p95 {st['p95']:.3f} s, max {st['max']:.3f} s"
         )
+    if summary.get("budget_exhausted"):
+        print(
+            f"warning: {summary['budget_exhausted']} run(s) spent the solver's step "
+            "budget before t_end and are counted as not stable: raise --max-steps",
+            file=sys.stderr,
+        )
     print(f"wrote {out}/scenarios.csv, summary.json, summary.md, montecarlo.png")
 
 
@@ -376,6 +395,7 @@ def _run_cct(args, sets, plant, op, init) -> dict:
         tol=args.tol,
         adaptation=args.adaptation,
         t_end=args.t_end,
+        max_steps=args.max_steps,
         progress=True,
     )
 
@@ -565,6 +585,7 @@ def _parser() -> argparse.ArgumentParser:
     )
     k.add_argument("--preset", choices=["paper", "realistic"], default="paper")
     k.add_argument("--adaptation", choices=["oracle", "realizable"], default="oracle")
+    _add_max_steps(k)
     _add_mc_options(k, 1000)
     _add_cct_options(k, with_reactance=False)
     k.add_argument("--out", metavar="DIR", help="output folder (default: runs/...)")

@@ -75,7 +75,12 @@ def metrics(
     """Exact metrics of a trajectory; bands in rad, pu and rad/s."""
     t, tf = traj.t, traj.t_fault
     return Metrics(
-        stable=is_stable(traj.lost_sync, traj.delta[-1], traj.delta_e, delta_band),
+        stable=is_stable(
+            traj.lost_sync | traj.budget_exhausted,
+            traj.delta[-1],
+            traj.delta_e,
+            delta_band,
+        ),
         settling_delta=settling_time(t, traj.delta, traj.delta_e, delta_band, tf),
         settling_Vt=settling_time(t, traj.Vt, traj.Vt_e, Vt_band, tf),
         settling_omega=settling_time(t, traj.omega, 0.0, omega_band, tf),

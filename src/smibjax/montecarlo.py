@@ -56,6 +56,7 @@ COLUMNS = (
     "Pm",  # true mechanical power (pu)
     "stable",  # 1: no loss of synchronism and delta in band at t_end
     "lost_sync",  # 1: the run left 0 < delta < pi (or the model's domain)
+    "budget_exhausted",  # 1: the solver spent max_steps first (neither verdict)
     "t_stop",  # s: t_end, or when synchronism was lost
     "settling_time",  # delta, 0.01 rad band, from fault inception (s; inf: never)
     "settling_Vt",  # s
@@ -68,7 +69,7 @@ COLUMNS = (
     "peak_B",  # max |B| (pu)
     "num_steps",  # accepted solver steps
 )
-_INT_COLUMNS = ("index", "stable", "lost_sync", "num_steps")
+_INT_COLUMNS = ("index", "stable", "lost_sync", "budget_exhausted", "num_steps")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -99,7 +100,7 @@ class MonteCarloSpec:
     max_steps: int = 50_000
 
     def __post_init__(self):
-        for name in ("n", "chunk"):
+        for name in ("n", "chunk", "max_steps"):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, int) or v < 1:
                 raise ParameterError(f"{name} = {v!r} is not allowed: must be >= 1")
@@ -209,6 +210,7 @@ def _engine(
             return {
                 "stable": m.stable,
                 "lost_sync": tr.lost_sync,
+                "budget_exhausted": tr.budget_exhausted,
                 "t_stop": tr.t_stop,
                 "settling_time": m.settling_delta,
                 "settling_Vt": m.settling_Vt,
@@ -328,6 +330,7 @@ def summarize(rows: dict[str, np.ndarray]) -> dict:
         "stable_fraction": k / n if n else 0.0,
         "stable_fraction_ci95": [lo, hi],
         "lost_sync": int(rows["lost_sync"].sum()),
+        "budget_exhausted": int(rows["budget_exhausted"].sum()),
         "settling_time": _quantiles(rows["settling_time"][stable]),
         "settling_Vt": _quantiles(rows["settling_Vt"][stable]),
         "overshoot": _quantiles(rows["overshoot"][stable]),
@@ -349,6 +352,8 @@ def summary_markdown(summary: dict, title: str = "Monte Carlo") -> str:
         f"- stable: {s['stable']} ({100 * s['stable_fraction']:.2f}%, 95% CI "
         f"{100 * lo:.2f}-{100 * hi:.2f}%)",
         f"- lost synchronism: {s['lost_sync']}",
+        f"- step budget spent before t_end (counted as not stable): "
+        f"{s.get('budget_exhausted', 0)}",
         f"- solver steps per scenario: mean {s['num_steps']['mean']:.0f}, "
         f"max {s['num_steps']['max']}",
         "",
@@ -467,7 +472,11 @@ def run_montecarlo(
     parts = []
     for k in range(spec.n_chunks):
         with np.load(_chunk_path(out, k)) as z:
-            parts.append({c: z[c] for c in COLUMNS})
+            # chunks written before budget_exhausted was a column: never exhausted
+            # there was reported as lost_sync, so 0 is what they recorded.
+            parts.append(
+                {c: z[c] if c in z else np.zeros_like(z["stable"]) for c in COLUMNS}
+            )
     rows = {c: np.concatenate([p[c] for p in parts]) for c in COLUMNS}
     summary = summarize(rows)
     write_csv(out / "scenarios.csv", rows)

@@ -29,14 +29,20 @@ def trajectory_arrays(traj) -> dict[str, np.ndarray]:
     out = {k: np.asarray(getattr(traj, k)) for k in keys}
     out["stable"] = np.asarray(traj.stable, dtype=bool)
     out["lost_sync"] = np.asarray(traj.lost_sync, dtype=bool)
+    out["budget_exhausted"] = np.asarray(traj.budget_exhausted, dtype=bool)
     out["t_stop"] = np.asarray(traj.t_stop, dtype=float)
     return out
 
 
+def _stopped(a: dict) -> bool:
+    """The run ended before t_end: lost synchronism or a spent step budget."""
+    return bool(a["lost_sync"]) or bool(a.get("budget_exhausted", False))
+
+
 def _masked(a: dict, key: str) -> np.ndarray:
-    """Signal with the samples after a loss of synchronism hidden (NaN)."""
+    """Signal with the samples after an early stop hidden (NaN)."""
     y = np.array(a[key], dtype=float)
-    if a["lost_sync"]:
+    if _stopped(a):
         y[a["t"] > a["t_stop"]] = np.nan
     return y
 
@@ -46,7 +52,7 @@ def _panels(ax, runs: dict[str, dict], key: str, col=None, ylabel="", true=None)
         y = _masked(a, key)
         y = y if col is None else y[:, col]
         ax.plot(a["t"], y, _STYLES[i % len(_STYLES)], lw=1.4, label=label)
-        if a["lost_sync"]:
+        if _stopped(a):
             j = np.searchsorted(a["t"], a["t_stop"]) - 1
             ax.plot(a["t"][j], y[j], "x", color=ax.lines[-1].get_color(), ms=8)
     if true is not None:
@@ -63,8 +69,10 @@ def _save(fig, path) -> None:
 def _note_lost(fig, runs):
     lost = [
         f"{k}: lost synchronism at t = {a['t_stop']:.3f} s (x)"
-        for k, a in runs.items()
         if a["lost_sync"]
+        else f"{k}: solver step budget spent at t = {a['t_stop']:.3f} s (x)"
+        for k, a in runs.items()
+        if _stopped(a)
     ]
     if lost:
         fig.text(0.01, 0.005, "; ".join(lost), fontsize=8, color="firebrick")

@@ -24,6 +24,11 @@ def format_summary(gains, fault, plant, traj, m: Metrics, args=None) -> str:
     c = "AFTSC" if float(gains.alpha) < 1 else "ASC"
     if bool(traj.lost_sync):
         verdict = f"UNSTABLE: lost synchronism at t = {float(traj.t_stop):.3f} s"
+    elif bool(traj.budget_exhausted):
+        verdict = (
+            f"UNDECIDED: the solver spent its step budget at t = "
+            f"{float(traj.t_stop):.3f} s (raise --max-steps)"
+        )
     elif d["stable"]:
         verdict = "stable"
     else:
