@@ -28,7 +28,7 @@ def exact(t, y0, switch):
     return y0 * np.exp(-integral)
 
 
-def run(switch, floor=-1.0, t_end=2.0, dt=0.01, block=16):
+def run(switch, floor=-1.0, t_end=2.0, dt=0.01, checkpoints=13):
     ts = np.linspace(0.0, t_end, 41)
     y0 = jnp.array([1.0, 2.0])
     loop = {"switch": switch}
@@ -41,7 +41,7 @@ def run(switch, floor=-1.0, t_end=2.0, dt=0.01, block=16):
         t_end=t_end,
         dt=dt,
         ts=ts,
-        block=block,
+        checkpoints=checkpoints,  # blocks of 16 steps
     ), ts
 
 

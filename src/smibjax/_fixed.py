@@ -59,15 +59,16 @@ def solve_fixed(
     dt: float,
     ts: np.ndarray,
     solver: dfx.AbstractRungeKutta | None = None,
-    block: int = 64,
+    checkpoints: int | None = None,
 ) -> FixedSolution:
     """Integrate dy/dt = field(t, y, loop) from 0 to t_end on the fixed grid.
 
     `switch` (s) are the times at which the field changes (each becomes a grid point;
     those outside (0, t_end) are placed at an end and add a zero-length step);
     `healthy(t, y, loop)` is False once the run has left the model's domain;
-    `solver`: an explicit Runge-Kutta method of diffrax (default Tsit5); `block`:
-    steps per checkpointed block of the reverse pass.
+    `solver`: an explicit Runge-Kutta method of diffrax (default Tsit5);
+    `checkpoints`: states kept for the reverse pass, one per block of steps (None:
+    about sqrt(steps)).
     """
     grid0, index0 = base_grid(t_end, dt, ts)
     sw = jnp.sort(jnp.clip(switch, 0.0, t_end))
@@ -81,6 +82,10 @@ def solve_fixed(
     is_switch = perm >= grid0.shape[0]
     index = jnp.asarray(index0) + jnp.sum(sw[None, :] < jnp.asarray(ts)[:, None], 1)
     n_steps = grid.shape[0] - 1
+    if checkpoints:
+        block = max(1, -(-n_steps // checkpoints))
+    else:
+        block = max(1, int(round(np.sqrt(n_steps))))
     n_blocks = -(-n_steps // block)
     pad = n_blocks * block - n_steps
     ta = jnp.concatenate([grid[:-1], jnp.full(pad, t_end)])

@@ -7,6 +7,8 @@ built).
 
 from __future__ import annotations
 
+import numbers
+
 import jax
 import numpy as np
 
@@ -36,3 +38,9 @@ def require(ok, owner: str, name: str, value, allowed: str) -> None:
         raise ParameterError(
             f"{owner}.{name} = {_fmt(value)} is not allowed: {allowed}"
         )
+
+
+def require_count(name: str, v) -> None:
+    """Raise `ParameterError` unless `v` is an integer >= 1 (not a bool)."""
+    if isinstance(v, bool) or not isinstance(v, numbers.Integral) or v < 1:
+        raise ParameterError(f"{name} = {v!r} is not allowed: must be >= 1")

@@ -22,6 +22,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from ._validate import require_count
 from .controller import static_alpha
 from .metrics import metrics
 from .parallel import device_map
@@ -140,8 +141,7 @@ def critical_clearing_times(
     n_lanes = len(pairs)
 
     alpha_one = all(float(gain_sets[n].alpha) == 1.0 for n in names)
-    if isinstance(max_steps, bool) or not isinstance(max_steps, int) or max_steps < 1:
-        raise ParameterError(f"max_steps = {max_steps!r} is not allowed: must be >= 1")
+    require_count("max_steps", max_steps)
     batch_fn = _stable_batch_fn(
         plant, op, init, adaptation, t_end, alpha_one, max_steps
     )

@@ -18,6 +18,7 @@ import jax
 import jax.numpy as jnp
 from jaxtyping import Array, Float
 
+from ._validate import is_concrete
 from .network import prefault_stage
 from .parameters import Gains, OperatingPoint, Plant
 from .plant import plant_vector_field
@@ -66,7 +67,7 @@ def static_alpha(gains: Gains, alpha_one: bool | None = None) -> Gains:
     """
     if alpha_one is None:
         a = gains.alpha
-        if isinstance(a, jax.core.Tracer) or jnp.ndim(a) != 0:
+        if not is_concrete(a) or jnp.ndim(a) != 0:
             return gains
         alpha_one = float(a) == 1.0
     if not alpha_one:

@@ -25,6 +25,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from ._validate import require_count
 from .controller import static_alpha
 from .io import write_json, write_npz, write_text
 from .metrics import metrics
@@ -101,9 +102,7 @@ class MonteCarloSpec:
 
     def __post_init__(self):
         for name in ("n", "chunk", "max_steps"):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, int) or v < 1:
-                raise ParameterError(f"{name} = {v!r} is not allowed: must be >= 1")
+            require_count(name, getattr(self, name))
         if self.adaptation not in ("oracle", "realizable"):
             raise ParameterError(
                 f"adaptation = {self.adaptation!r} is not allowed: must be 'oracle' "

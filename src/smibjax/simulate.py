@@ -35,8 +35,9 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Bool, Float, Int
 
-from ._fixed import base_grid, solve_fixed
+from ._fixed import solve_fixed
 from ._stepping import RigidSteps
+from ._validate import require_count
 from .closed_loop import (
     N_DYNAMIC,
     ClosedLoop,
@@ -192,12 +193,6 @@ def _simulate(
     ts = jnp.asarray(ts_np)
     jumps = jnp.stack([fault.t_fault, fault.t_clear, fault.t_reclose])
     if solver == "fixed":
-        n_steps = base_grid(t_end, dt, ts_np)[0].shape[0] + 2
-        block = (
-            max(1, -(-n_steps // checkpoints))
-            if checkpoints
-            else max(1, int(round(np.sqrt(n_steps))))
-        )
         sol = solve_fixed(
             closed_loop_vector_field,
             loop,
@@ -208,7 +203,7 @@ def _simulate(
             dt=dt,
             ts=ts_np,
             solver=_SOLVERS[method](),
-            block=block,
+            checkpoints=checkpoints,
         )
         ys, y_hold, lost_sync = sol.samples, sol.y_hold, sol.lost_sync
         t_stop, num_steps = sol.t_stop, sol.num_steps
@@ -335,8 +330,7 @@ def simulate(
         )
     if max_steps is None:
         max_steps = 50_000
-    if isinstance(max_steps, bool) or int(max_steps) != max_steps or max_steps < 1:
-        raise ParameterError(f"max_steps = {max_steps!r} is not allowed: must be >= 1")
+    require_count("max_steps", max_steps)
     return _simulate(
         gains,
         fault,
