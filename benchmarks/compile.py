@@ -10,8 +10,11 @@ enable it (`smibjax.enable_compilation_cache`: `jax_compilation_cache_dir` = SMI
 `jax_persistent_cache_min_compile_time_secs` = 0.5), in a fresh temporary folder per
 cold run. Reported: the process wall time (start to exit, measured here) and the time
 inside Python from the first import to the result, and which entries the cold run
-left in the cache. Targets: simulate cold < 4 s, warm < 2 s; value-and-grad cold <
-12 s. Prints a table and writes benchmarks/results/compile.json and compile.png.
+left in the cache. The targets are on the time from spawning the process to its
+result ("to the first simulated result"); the process wall time to exit, ~0.3 s
+more (Python's final garbage collection), is reported beside it. Targets: simulate
+cold < 4 s, warm < 2 s; value-and-grad cold < 12 s. Prints a table and writes
+benchmarks/results/compile.json and compile.png.
 
     python benchmarks/compile.py [--repeat 2] [--eqx-on-error raise]
 """
@@ -48,7 +51,8 @@ tr = sj.simulate(sj.Gains.paper({controller!r}, beta1=-1.0, beta2=-1.0), t_end={
 tr.delta.block_until_ready()
 t2 = time.perf_counter()
 print({tag!r} + json.dumps(dict(import_s=t1 - t0, first_result_s=t2 - t1,
-      in_python_s=t2 - t0, steps=int(tr.num_steps))), flush=True)
+      in_python_s=t2 - t0, result_epoch=time.time(), steps=int(tr.num_steps))),
+      flush=True)
 """
 
 VALUE_AND_GRAD = """
@@ -74,7 +78,8 @@ out = make_train_step(setup)(space.to_raw(init), faults)
 jax.block_until_ready(out)
 t2 = time.perf_counter()
 print({tag!r} + json.dumps(dict(import_s=t1 - t0, first_result_s=t2 - t1,
-      in_python_s=t2 - t0, loss=float(out[0]), devices=len(jax.devices()),
+      in_python_s=t2 - t0, result_epoch=time.time(), loss=float(out[0]),
+      devices=len(jax.devices()),
       train_t_end=cfg["train"]["t_end"])), flush=True)
 """
 
@@ -116,6 +121,7 @@ def run_child(code: str, cache: str, eqx_on_error: str | None) -> dict:
     env = {**os.environ, "SMIBJAX_CACHE_DIR": cache}
     if eqx_on_error is not None:
         env["EQX_ON_ERROR"] = eqx_on_error
+    start = time.time()
     t0 = time.perf_counter()
     p = subprocess.run(
         [sys.executable, "-c", code],
@@ -128,7 +134,12 @@ def run_child(code: str, cache: str, eqx_on_error: str | None) -> dict:
     line = [s for s in p.stdout.splitlines() if s.startswith(TAG)]
     if p.returncode != 0 or not line:
         raise SystemExit(f"child process failed:\n{p.stderr[-4000:]}")
-    return {"process_wall_s": wall, **json.loads(line[-1][len(TAG) :])}
+    r = json.loads(line[-1][len(TAG) :])
+    # From the spawn to the child's result (interpreter start, imports, the call);
+    # the process then still spends ~0.3 s exiting (Python's final garbage
+    # collection over JAX's objects), counted in process_wall_s only.
+    r["to_result_s"] = r.pop("result_epoch") - start
+    return {"process_wall_s": wall, **r}
 
 
 def cache_entries(folder: str) -> list[str]:
@@ -169,7 +180,8 @@ def main(argv=None) -> None:
                     if kind == "cold":
                         entries[case] = cache_entries(cache)
                     print(
-                        f"  {case} {kind} #{i + 1}: process {r['process_wall_s']:.2f} s,"
+                        f"  {case} {kind} #{i + 1}: to result {r['to_result_s']:.2f} s, "
+                        f"process {r['process_wall_s']:.2f} s,"
                         f" in Python {r['in_python_s']:.2f} s (import "
                         f"{r['import_s']:.2f} s)",
                         flush=True,
@@ -179,29 +191,32 @@ def main(argv=None) -> None:
     for case in args.cases:
         for kind in ("cold", "warm"):
             rr = runs[case][kind]
-            best = min(rr, key=lambda r: r["process_wall_s"])
+            best = min(rr, key=lambda r: r["to_result_s"])
             tgt = TARGETS.get((case, kind))
             rows[f"{case} {kind}"] = {
+                "to_result_s": best["to_result_s"],
                 "process_wall_s": best["process_wall_s"],
                 "in_python_s": best["in_python_s"],
                 "import_s": best["import_s"],
                 "first_result_s": best["first_result_s"],
+                "all_to_result_s": [r["to_result_s"] for r in rr],
                 "all_process_wall_s": [r["process_wall_s"] for r in rr],
                 "target_s": tgt,
                 "status": "-"
                 if tgt is None
-                else ("met" if best["process_wall_s"] < tgt else "MISSED"),
+                else ("met" if best["to_result_s"] < tgt else "MISSED"),
             }
 
     print()
     print(
-        f"{'case':22} {'process s':>9} {'in Python':>9} {'import':>7} "
+        f"{'case':22} {'to result':>9} {'process s':>9} {'in Python':>9} {'import':>7} "
         f"{'1st result':>10} {'target':>7} {'status':>7}"
     )
     for name, r in rows.items():
         tgt = "" if r["target_s"] is None else f"< {r['target_s']:g}"
         print(
-            f"{name:22} {r['process_wall_s']:9.2f} {r['in_python_s']:9.2f} "
+            f"{name:22} {r['to_result_s']:9.2f} {r['process_wall_s']:9.2f} "
+            f"{r['in_python_s']:9.2f} "
             f"{r['import_s']:7.2f} {r['first_result_s']:10.2f} {tgt:>7} "
             f"{r['status']:>7}"
         )
@@ -221,9 +236,10 @@ def main(argv=None) -> None:
         f"min compile time {args.min_compile_time:g} s (as smibjax.enable_compilation_cache)",
         "eqx_on_error": eqx_on_error or "unset (smibjax sets nan on import)",
         "repeat": args.repeat,
-        "timing": "process wall time from start to exit (best of repeat); in Python: "
-        "first import to the blocked result",
-        "targets_process_s": {f"{c} {k}": v for (c, k), v in TARGETS.items()},
+        "timing": "to result: from spawning the process to its blocked result (the "
+        "targets; best of repeat); process: spawn to exit; in Python: first import to "
+        "the blocked result",
+        "targets_to_result_s": {f"{c} {k}": v for (c, k), v in TARGETS.items()},
     }
     path = write_results(
         args.out,
@@ -242,15 +258,15 @@ def main(argv=None) -> None:
     x = range(len(names))
     ax.bar(
         [i - 0.2 for i in x],
-        [rows[n]["process_wall_s"] for n in names],
+        [rows[n]["to_result_s"] for n in names],
         0.4,
-        label="process wall time",
+        label="spawn to first result",
     )
     ax.bar(
         [i + 0.2 for i in x],
-        [rows[n]["in_python_s"] for n in names],
+        [rows[n]["process_wall_s"] for n in names],
         0.4,
-        label="in Python, import to result",
+        label="process wall time (to exit)",
     )
     for i, n in enumerate(names):
         if rows[n]["target_s"] is not None:

