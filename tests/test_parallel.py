@@ -1,0 +1,107 @@
+"""Batches over the host devices: `shard_batch` (one shard_map program) against
+`device_map` (one program per device) and against one device, through diffrax's reverse
+pass (which needs smibjax._compat's work-around under shard_map)."""
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+import smibjax as sj
+from smibjax._compat import shard_map_closure_fix
+from smibjax.parallel import device_map, shard_batch
+
+
+def _value_and_grad():
+    """Per-fault value and gradient (with respect to the gains) of a short run of the
+    fixed-step training solver: the reverse pass goes through diffrax's stage loop."""
+
+    def one(g, f):
+        tr = sj.simulate(g, f, t_end=0.3, solver="fixed", dt=2e-3, dt_save=0.01)
+        return jnp.sum((tr.delta - tr.delta_e) ** 2) + jnp.sum(tr.u_f**2) * 1e-3
+
+    return jax.vmap(jax.value_and_grad(one), in_axes=(None, 0))
+
+
+def _faults(n):
+    t = jnp.linspace(0.02, 0.1, n)
+    return sj.Fault(
+        t_fault=t,
+        t_clear=t + 0.1,
+        t_reclose=t + 0.15,
+        lam=jnp.linspace(0.2, 0.8, n),
+        Xf=jnp.zeros(n),
+    )
+
+
+def test_shard_batch_matches_device_map_and_one_device():
+    # This process has one host device (the suite's); the check runs in a child with
+    # two, as the command-line tools and the tuner use them.
+    here = Path(__file__).resolve().parent
+    code = (
+        "import jax\n"
+        f"jax.config.update('jax_compilation_cache_dir', {str(here.parent / '.jax_cache')!r})\n"
+        "jax.config.update('jax_persistent_cache_min_compile_time_secs', 0.5)\n"
+        "assert len(jax.devices()) == 2, jax.devices()\n"
+        "import test_parallel\n"
+        "test_parallel.check_two_devices()\n"
+        "print('CHECKED')\n"
+    )
+    env = {
+        **os.environ,
+        "XLA_FLAGS": "--xla_force_host_platform_device_count=2",
+        "PYTHONPATH": os.pathsep.join([str(here), os.environ.get("PYTHONPATH", "")]),
+    }
+    p = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, env=env
+    )
+    assert p.returncode == 0 and "CHECKED" in p.stdout, p.stderr[-3000:]
+
+
+def check_two_devices():
+    """shard_batch against device_map and one device, on 2 host devices."""
+    fn = _value_and_grad()
+    g = sj.Gains.paper("aftsc", beta1=-1.0, beta2=-1.0)
+    faults = _faults(5)  # 5 over 2 devices: padded to 6, trimmed back
+    sharded = shard_batch(fn)(g, faults)
+    mapped = device_map(jax.jit(fn), g, faults)
+    (v, dg), (v2, dg2) = sharded, mapped
+    assert v.shape == (5,)
+    assert np.all(np.isfinite(v)) and np.all(v > 0)
+    np.testing.assert_allclose(v, v2, rtol=1e-12, atol=0)
+    leaves = zip(
+        jax.tree_util.tree_leaves(dg), jax.tree_util.tree_leaves(dg2), strict=True
+    )
+    for a, b in leaves:
+        assert a.shape[0] == 5
+        np.testing.assert_allclose(a, b, rtol=1e-10, atol=1e-14)
+    # and against the same slices run one by one on a single device
+    for i in (0, 4):
+        f_i = jax.tree_util.tree_map(lambda a, i=i: a[i : i + 2], faults)
+        v1, _ = jax.jit(fn)(g, f_i)
+        np.testing.assert_allclose(v[i], v1[0], rtol=1e-12)
+    # outputs are gathered on the first device, like device_map's
+    assert v.devices() == {jax.devices()[0]}
+
+
+def test_shard_batch_of_one_slice_runs_on_one_device():
+    fn = jax.vmap(lambda a, x: a * jnp.sin(x), in_axes=(None, 0))
+    x = jnp.array([0.3, 0.7])  # 2 scenarios: one slice, no mesh
+    out = shard_batch(fn)(jnp.asarray(2.0), x)
+    np.testing.assert_allclose(out, 2.0 * np.sin([0.3, 0.7]), rtol=1e-15)
+
+
+def test_the_equinox_work_around_is_scoped():
+    from equinox import _ad
+
+    original = _ad._strip_weak_dtype
+    with shard_map_closure_fix():
+        patched = _ad._strip_weak_dtype
+        assert patched is not original
+        s = jax.ShapeDtypeStruct((2,), jnp.float64)
+        assert patched({"a": s}) == {"a": jax.ShapeDtypeStruct((2,), jnp.float64)}
+    assert _ad._strip_weak_dtype is original
