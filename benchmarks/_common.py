@@ -25,6 +25,28 @@ CONTROLLERS = ("aftsc", "asc")
 ALPHA = {"aftsc": "5/7", "asc": "1"}
 # Tight-tolerance reference of the accuracy checks (adaptive Tsit5, same model).
 REF_RTOL, REF_ATOL, REF_MAX_STEPS = 1e-10, 1e-12, 400_000
+# The solver tolerances of the timed runs: simulate's defaults unless --rtol/--atol.
+RTOL, ATOL = 1e-6, 1e-8
+
+
+def add_tolerance_args(ap) -> None:
+    """--rtol/--atol of the timed runs (and of SciPy's, where a script has one)."""
+    ap.add_argument(
+        "--rtol", type=float, default=RTOL, help="solver rtol (simulate's default 1e-6)"
+    )
+    ap.add_argument(
+        "--atol", type=float, default=ATOL, help="solver atol (simulate's default 1e-8)"
+    )
+    ap.add_argument(
+        "--tag",
+        default="",
+        help="suffix of the result files (NAME_TAG.json), e.g. for another tolerance",
+    )
+
+
+def result_name(name: str, tag: str) -> str:
+    """NAME, or NAME_TAG."""
+    return f"{name}_{tag}" if tag else name
 
 
 def enable_cache() -> str | None:
@@ -65,15 +87,17 @@ def host_devices(k: int) -> list:
     return devs[:k]
 
 
-def batched_metrics(t_end: float, alpha_one: bool = False):
+def batched_metrics(
+    t_end: float, alpha_one: bool = False, rtol: float = RTOL, atol: float = ATOL
+):
     """jit(vmap(simulate + metrics)): (gains, faults) -> (stable, settling time of
-    delta (s), accepted steps), default adaptive solver. `alpha_one`: the gains are
-    ASC's (alpha = 1, compiled in as the Monte Carlo engine does)."""
+    delta (s), accepted steps), adaptive solver at (rtol, atol). `alpha_one`: the
+    gains are ASC's (alpha = 1, compiled in as the Monte Carlo engine does)."""
 
     def one(g, f):
         # alpha = 1 (ASC) compiled in, as the Monte Carlo and CCT engines do.
         g = static_alpha(g, alpha_one)
-        tr = sj.simulate(g, f, t_end=t_end)
+        tr = sj.simulate(g, f, t_end=t_end, rtol=rtol, atol=atol)
         m = metrics(tr)
         return m.stable, m.settling_delta, tr.num_steps
 
@@ -93,13 +117,21 @@ def timed(fn, repeat: int):
     return first, best, out
 
 
-def deltas(g: sj.Gains, faults: sj.Fault, n: int, t_end: float, tight: bool):
+def deltas(
+    g: sj.Gains,
+    faults: sj.Fault,
+    n: int,
+    t_end: float,
+    tight: bool,
+    rtol: float = RTOL,
+    atol: float = ATOL,
+):
     """(delta (n, samples), lost_sync (n,)) of the first n scenarios, one unbatched
-    run each: default solver, or the tight reference (rtol 1e-10, atol 1e-12)."""
+    run each: at (rtol, atol), or the tight reference (rtol 1e-10, atol 1e-12)."""
     kw = (
         {"rtol": REF_RTOL, "atol": REF_ATOL, "max_steps": REF_MAX_STEPS}
         if tight
-        else {}
+        else {"rtol": rtol, "atol": atol}
     )
     runs = [sj.simulate(g, row(faults, i), t_end=t_end, **kw) for i in range(n)]
     return (

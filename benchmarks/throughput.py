@@ -12,6 +12,7 @@ on the first --n-check scenarios against a tight-tolerance run (rtol 1e-10, atol
 benchmarks/results/throughput.json and throughput.png.
 
     python benchmarks/throughput.py [--batches 1 16 256 1024 4096] [--devices 1 2]
+        [--rtol 1e-6] [--atol 1e-8]
 """
 
 from __future__ import annotations
@@ -37,11 +38,13 @@ from _common import (  # noqa: E402
     ALPHA,
     CONTROLLERS,
     DEFAULT_OUT,
+    add_tolerance_args,
     batched_metrics,
     deltas,
     enable_cache,
     gains,
     host_devices,
+    result_name,
     scenarios,
     status,
     take,
@@ -74,6 +77,7 @@ def parse_args(argv=None):
     )
     ap.add_argument("--t-end", type=float, default=10.0, help="scenario length (s)")
     ap.add_argument("--seed", type=int, default=0)
+    add_tolerance_args(ap)
     ap.add_argument("--out", default=str(DEFAULT_OUT))
     return ap.parse_args(argv)
 
@@ -85,10 +89,11 @@ def main(argv=None) -> None:
     rows, accuracy = [], {}
     for ctrl in args.controllers:
         g = gains(ctrl)
-        fn = batched_metrics(args.t_end, alpha_one=ctrl == "asc")
+        fn = batched_metrics(args.t_end, ctrl == "asc", args.rtol, args.atol)
         if args.n_check > 0:
+            tol = {"rtol": args.rtol, "atol": args.atol}
             err = np.abs(
-                deltas(g, pool, args.n_check, args.t_end, tight=False)[0]
+                deltas(g, pool, args.n_check, args.t_end, tight=False, **tol)[0]
                 - deltas(g, pool, args.n_check, args.t_end, tight=True)[0]
             )
             accuracy[ctrl] = {
@@ -159,7 +164,10 @@ def main(argv=None) -> None:
         "scenario_s": args.t_end,
         "faults": f"sample_faults(PRNGKey({args.seed}), n, FaultDistribution())",
         "gains": "Gains.paper(controller, beta1=-1, beta2=-1)",
-        "solver": "simulate default: adaptive Tsit5, rtol 1e-6, atol 1e-8",
+        "solver": f"adaptive Tsit5, rtol {args.rtol:g}, atol {args.atol:g} "
+        "(simulate's defaults: 1e-6, 1e-8)",
+        "rtol": args.rtol,
+        "atol": args.atol,
         "batches": args.batches,
         "devices": args.devices,
         "host_devices": len(jax.devices()),
@@ -176,9 +184,8 @@ def main(argv=None) -> None:
         },
         "persistent_cache": cache,
     }
-    path = write_results(
-        args.out, "throughput", config, {"rows": rows, "accuracy": accuracy}
-    )
+    name = result_name("throughput", args.tag)
+    path = write_results(args.out, name, config, {"rows": rows, "accuracy": accuracy})
 
     fig, ax = plt.subplots(figsize=(7, 4.5))
     for ctrl in args.controllers:
@@ -205,12 +212,15 @@ def main(argv=None) -> None:
     ax.set_yscale("log")
     ax.set_xlabel("batch size (scenarios)")
     ax.set_ylabel("scenarios / s")
-    ax.set_title(f"{args.t_end:g} s scenarios, adaptive Tsit5 rtol 1e-6")
+    ax.set_title(
+        f"{args.t_end:g} s scenarios, adaptive Tsit5 rtol {args.rtol:g}, "
+        f"atol {args.atol:g}"
+    )
     ax.grid(alpha=0.3, which="both")
     ax.legend(fontsize=8)
     fig.tight_layout()
-    fig.savefig(Path(args.out) / "throughput.png", dpi=110)
-    print(f"wrote {path} and throughput.png")
+    fig.savefig(Path(args.out) / f"{name}.png", dpi=110)
+    print(f"wrote {path} and {name}.png")
 
 
 if __name__ == "__main__":

@@ -6,14 +6,16 @@ tests/reference.py (its right-hand side and network stages), integrated the way 
 would write it: one solve_ivp per network stage, sampled on the same 10 ms grid, one
 scenario after another. The smibjax side is the throughput benchmark's batch call
 (jit(vmap(simulate + metrics)) over --devices host devices) at batch --batch. Both at
-rtol 1e-6, atol 1e-8. The agreement is measured on the scenarios both ran: max |delta|
-difference between SciPy and smibjax, and each against a tight-tolerance reference
-(smibjax at rtol 1e-10, atol 1e-12, or --reference scipy: DOP853 at the same
-tolerance). Targets: smibjax at least 300x the SciPy loop's scenarios/s for AFTSC and
-150x for ASC (against the faster SciPy method). Prints a table and writes
-benchmarks/results/vs_scipy.json and vs_scipy.png.
+rtol 1e-6, atol 1e-8 (simulate's defaults; --rtol/--atol set both). The agreement
+is measured on the scenarios both ran: max |delta| difference between SciPy and
+smibjax, and each against a tight-tolerance reference (smibjax at rtol 1e-10,
+atol 1e-12, or --reference scipy: DOP853 at that tolerance). Targets: smibjax at
+least 300x the SciPy loop's scenarios/s for AFTSC and 150x for ASC (against the
+faster SciPy method). Prints a table and writes benchmarks/results/vs_scipy.json and
+vs_scipy.png (vs_scipy_TAG.* with --tag).
 
     python benchmarks/vs_scipy.py [--n-scipy 8] [--batch 1024] [--devices 2]
+        [--rtol 1e-6] [--atol 1e-8] [--tag NAME]
 """
 
 from __future__ import annotations
@@ -48,11 +50,13 @@ from _common import (  # noqa: E402
     DEFAULT_OUT,
     REF_ATOL,
     REF_RTOL,
+    add_tolerance_args,
     batched_metrics,
     deltas,
     enable_cache,
     gains,
     host_devices,
+    result_name,
     row,
     scenarios,
     status,
@@ -65,7 +69,6 @@ import smibjax as sj  # noqa: E402
 from smibjax.closed_loop import DELTA_MARGIN  # noqa: E402
 from smibjax.parallel import device_map  # noqa: E402
 
-RTOL, ATOL = 1e-6, 1e-8
 TARGET_RATIO = {"aftsc": 300.0, "asc": 150.0}
 
 
@@ -148,6 +151,7 @@ def parse_args(argv=None):
     )
     ap.add_argument("--t-end", type=float, default=10.0, help="scenario length (s)")
     ap.add_argument("--seed", type=int, default=0)
+    add_tolerance_args(ap)
     ap.add_argument("--out", default=str(DEFAULT_OUT))
     return ap.parse_args(argv)
 
@@ -162,7 +166,8 @@ def main(argv=None) -> None:
     rows, agreement = {}, {}
     for ctrl in args.controllers:
         g = gains(ctrl)
-        fn = batched_metrics(args.t_end, alpha_one=ctrl == "asc")
+        tol = (args.rtol, args.atol)
+        fn = batched_metrics(args.t_end, ctrl == "asc", *tol)
         gd = {n: float(getattr(g, n)) for n in sj.GAIN_NAMES}
 
         # smibjax: one batch call over the devices (best of --repeat after warm-up)
@@ -188,7 +193,7 @@ def main(argv=None) -> None:
 
         # the shared scenarios: smibjax per scenario, and the tight reference
         n = args.n_scipy
-        d_jax, lost = deltas(g, pool, n, args.t_end, tight=False)
+        d_jax, lost = deltas(g, pool, n, args.t_end, False, *tol)
         if args.reference == "smibjax":
             d_ref = deltas(g, pool, n, args.t_end, tight=True)[0]
         else:
@@ -219,7 +224,7 @@ def main(argv=None) -> None:
             for i in range(n):
                 fl = fault_dict(row(pool, i))
                 t0 = time.perf_counter()
-                d, ok = scipy_scenario(gd, plant, fl, method, args.t_end, (RTOL, ATOL))
+                d, ok = scipy_scenario(gd, plant, fl, method, args.t_end, tol)
                 t_total += time.perf_counter() - t0
                 ds.append(d)
                 oks.append(ok)
@@ -296,7 +301,7 @@ def main(argv=None) -> None:
         "faults": f"sample_faults(PRNGKey({args.seed}), n, FaultDistribution()), "
         "the first n_scipy shared",
         "gains": "Gains.paper(controller, beta1=-1, beta2=-1)",
-        "tolerance": {"rtol": RTOL, "atol": ATOL},
+        "tolerance": {"rtol": args.rtol, "atol": args.atol},
         "n_scipy": args.n_scipy,
         "scipy_methods": args.methods,
         "scipy_model": "tests/reference.py rhs and stages, one solve_ivp per stage, "
@@ -309,9 +314,8 @@ def main(argv=None) -> None:
         "targets": {"smibjax_over_fastest_scipy": TARGET_RATIO},
         "persistent_cache": cache,
     }
-    path = write_results(
-        args.out, "vs_scipy", config, {"rows": rows, "agreement": agreement}
-    )
+    name = result_name("vs_scipy", args.tag)
+    path = write_results(args.out, name, config, {"rows": rows, "agreement": agreement})
 
     fig, ax = plt.subplots(figsize=(7, 4.5))
     cases = [*args.methods, "smibjax"]
@@ -337,15 +341,15 @@ def main(argv=None) -> None:
     ax.set_yscale("log")
     ax.set_ylabel("scenarios / s")
     ax.set_title(
-        f"{args.t_end:g} s scenarios, rtol 1e-6, atol 1e-8 "
+        f"{args.t_end:g} s scenarios, rtol {args.rtol:g}, atol {args.atol:g} "
         f"(label: smibjax speed-up over that method)",
         fontsize=9,
     )
     ax.legend(fontsize=8)
     ax.grid(alpha=0.3, axis="y", which="both")
     fig.tight_layout()
-    fig.savefig(Path(args.out) / "vs_scipy.png", dpi=110)
-    print(f"wrote {path} and vs_scipy.png")
+    fig.savefig(Path(args.out) / f"{name}.png", dpi=110)
+    print(f"wrote {path} and {name}.png")
 
 
 if __name__ == "__main__":

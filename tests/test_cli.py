@@ -67,6 +67,15 @@ def test_simulate_paper_case_reports_instability(capsys):
     assert "UNSTABLE: lost synchronism" in capsys.readouterr().out
 
 
+def test_solver_tolerances_reach_the_run(capsys):
+    stable = ["--set", "beta1=-1", "--set", "beta2=-1"]
+    assert main(["simulate", *stable, "--atol", "1e-6"]) == 0
+    out = capsys.readouterr().out
+    steps = int(out.split("solver: ")[1].split(" steps")[0])
+    assert 1500 < steps < 2600  # 3801 at the default atol 1e-8
+    assert "result:              stable" in out
+
+
 @pytest.mark.parametrize(
     "argv, needle",
     [
@@ -80,6 +89,8 @@ def test_simulate_paper_case_reports_instability(capsys):
         (["simulate", "--t-end", "-2"], "t_end = -2"),
         (["simulate", "--controller", "pid"], "invalid choice"),
         (["simulate", "--fault-time", "abc"], "invalid float"),
+        (["simulate", "--atol=-1e-6"], "atol = -1e-06"),
+        (["montecarlo", "--n", "4", "--rtol", "0"], "rtol = 0"),
     ],
 )
 def test_bad_input_is_one_line_and_nonzero(argv, needle, capsys):

@@ -299,13 +299,11 @@ def test_runs_that_spend_the_step_budget_are_counted_apart(tmp_path, capsys):
 
     out = tmp_path / "budget"
     args = ["montecarlo", "--n", "4", "--chunk", "4", "--t-end", "2", "--max-steps"]
-    assert (
-        main(
-            [*args, "300", "--set", "beta1=-1", "--set", "beta2=-1", "--out", str(out)]
-        )
-        == 0
-    )
+    stable = ["--set", "beta1=-1", "--set", "beta2=-1", "--atol", "1e-7"]
+    assert main([*args, "300", *stable, "--out", str(out)]) == 0
     assert "raise --max-steps" in capsys.readouterr().err
+    spec = json.loads((out / "run.json").read_text())["spec"]
+    assert spec["atol"] == 1e-7 and spec["rtol"] == 1e-6  # --atol reaches the runs
     rows = read_rows(out / "scenarios.csv")
     assert list(rows["budget_exhausted"]) == [1, 1, 1, 1]
     assert not rows["stable"].any() and not rows["lost_sync"].any()

@@ -321,7 +321,13 @@ def simulate(
         raise ParameterError(
             f"method = {method!r} is not allowed: must be one of {sorted(_SOLVERS)}"
         )
-    for name, v in (("t_end", t_end), ("dt_save", dt_save), ("dt", dt)):
+    for name, v in (
+        ("t_end", t_end),
+        ("dt_save", dt_save),
+        ("dt", dt),
+        ("rtol", rtol),
+        ("atol", atol),
+    ):
         if not (np.isfinite(v) and v > 0):
             raise ParameterError(f"{name} = {v:g} is not allowed: must be > 0")
     if dt_save > t_end:
