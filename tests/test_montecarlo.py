@@ -221,6 +221,27 @@ def test_cct_bisection_brackets_the_stability_boundary():
     assert stable(cct) and not stable(cct + tol)
 
 
+def test_cct_solver_tolerances_reach_the_runs(monkeypatch):
+    """The CCT engine's runs use the tolerances given (traced, not run)."""
+    import smibjax.cct as cct_module
+
+    seen = {}
+
+    class Traced(Exception):
+        pass
+
+    def fake_simulate(*args, **kw):
+        seen.update(kw)
+        raise Traced
+
+    monkeypatch.setattr(cct_module, "simulate", fake_simulate)
+    with pytest.raises(Traced):
+        critical_clearing_times(
+            {"a": sj.Gains()}, fault_locations=[0.5], rtol=2e-6, atol=3e-7
+        )
+    assert seen["rtol"] == 2e-6 and seen["atol"] == 3e-7
+
+
 @pytest.mark.parametrize(
     "argv, match",
     [
@@ -229,6 +250,8 @@ def test_cct_bisection_brackets_the_stability_boundary():
         (["cct", "--reclose-time", "0.3"], "must be after --fault-time"),
         (["cct", "--fault-location", "1.5"], "within \\(0, 1\\)"),
         (["compare", "--gains", "nope.json"], "not a built-in set"),
+        (["cct", "--atol=-1"], "atol = -1 is not allowed"),
+        (["cct", "--rtol", "0"], "rtol = 0 is not allowed"),
     ],
 )
 def test_batch_commands_bad_input(argv, match, capsys):

@@ -47,6 +47,8 @@ def _stable_batch_fn(
     t_end: float,
     alpha_one: bool = False,
     max_steps: int = 50_000,
+    rtol: float = 1e-6,
+    atol: float = 1e-8,
 ):
     """Jitted (gains, fault) lanes -> stable flags. The plant, operating point and
     initial estimates are compile-time constants (XLA folds what derives from them, as
@@ -67,6 +69,8 @@ def _stable_batch_fn(
                 init=init,
                 adaptation=adaptation,
                 t_end=t_end,
+                rtol=rtol,
+                atol=atol,
                 max_steps=max_steps,
             )
             return metrics(tr).stable
@@ -90,6 +94,8 @@ def critical_clearing_times(
     adaptation: str = "oracle",
     t_end: float = 10.0,
     max_steps: int = 50_000,
+    rtol: float = 1e-6,
+    atol: float = 1e-8,
     progress: bool = False,
 ) -> dict:
     """CCT (s) of every gain set at every fault location.
@@ -142,8 +148,11 @@ def critical_clearing_times(
 
     alpha_one = all(float(gain_sets[n].alpha) == 1.0 for n in names)
     require_count("max_steps", max_steps)
+    for name, v in (("rtol", rtol), ("atol", atol)):
+        if not (math.isfinite(v) and v > 0):
+            raise ParameterError(f"{name} = {v:g} is not allowed: must be > 0")
     batch_fn = _stable_batch_fn(
-        plant, op, init, adaptation, t_end, alpha_one, max_steps
+        plant, op, init, adaptation, t_end, alpha_one, max_steps, rtol, atol
     )
 
     def stable_at(durations: np.ndarray) -> np.ndarray:

@@ -416,6 +416,8 @@ def _run_cct(args, sets, plant, op, init) -> dict:
         adaptation=args.adaptation,
         t_end=args.t_end,
         max_steps=args.max_steps,
+        rtol=getattr(args, "rtol", 1e-6),
+        atol=getattr(args, "atol", 1e-8),
         progress=True,
     )
 
@@ -583,6 +585,7 @@ def _parser() -> argparse.ArgumentParser:
             a.nargs, a.default = "+", None
             a.help = "one or more of aftsc, asc (default aftsc)"
     _add_cct_options(c)
+    _add_tolerances(c)
     c.add_argument("--t-end", type=float, default=10.0, help="horizon (s)")
     c.add_argument("--out", metavar="FILE.json", help="write the CCTs (+ a .png plot)")
     c.set_defaults(func=_cmd_cct)
@@ -608,6 +611,7 @@ def _parser() -> argparse.ArgumentParser:
     k.add_argument("--preset", choices=["paper", "realistic"], default="paper")
     k.add_argument("--adaptation", choices=["oracle", "realizable"], default="oracle")
     _add_max_steps(k)
+    _add_tolerances(k)
     _add_mc_options(k, 1000)
     _add_cct_options(k, with_reactance=False)
     k.add_argument("--out", metavar="DIR", help="output folder (default: runs/...)")
