@@ -250,8 +250,8 @@ def test_cct_solver_tolerances_reach_the_runs(monkeypatch):
         (["cct", "--reclose-time", "0.3"], "must be after --fault-time"),
         (["cct", "--fault-location", "1.5"], "within \\(0, 1\\)"),
         (["compare", "--gains", "nope.json"], "not a built-in set"),
-        (["cct", "--atol=-1"], "atol = -1 is not allowed"),
-        (["cct", "--rtol", "0"], "rtol = 0 is not allowed"),
+        (["cct", "--atol=-1"], "--atol: -1 is not allowed"),
+        (["compare", "--rtol", "0"], "--rtol: 0 is not allowed"),
     ],
 )
 def test_batch_commands_bad_input(argv, match, capsys):

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import sys
 from pathlib import Path
 
@@ -67,16 +68,28 @@ def _add_max_steps(p: argparse.ArgumentParser) -> None:
     )
 
 
+def _tolerance(text: str) -> float:
+    """A solver tolerance: a finite number > 0 (checked while parsing, before any
+    work starts)."""
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"invalid float value: {text!r}") from None
+    if not (math.isfinite(v) and v > 0):
+        raise argparse.ArgumentTypeError(f"{text} is not allowed: must be > 0")
+    return v
+
+
 def _add_tolerances(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--rtol",
-        type=float,
+        type=_tolerance,
         default=1e-6,
         help="adaptive solver relative tolerance (default 1e-6)",
     )
     p.add_argument(
         "--atol",
-        type=float,
+        type=_tolerance,
         default=1e-8,
         help="adaptive solver absolute tolerance (default 1e-8; 1e-6 takes ~1.75x "
         "fewer AFTSC steps, delta within ~6e-6 rad: benchmarks/README.md)",
