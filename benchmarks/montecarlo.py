@@ -22,6 +22,7 @@ import time  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 import jax  # noqa: E402
+from _common import add_tolerance_args, result_name  # noqa: E402
 from _results import write_results  # noqa: E402
 
 import smibjax as sj  # noqa: E402
@@ -35,12 +36,10 @@ def main() -> None:
     ap.add_argument("--n", type=int, default=100_000)
     ap.add_argument("--chunk", type=int, default=256)
     ap.add_argument("--t-end", type=float, default=10.0)
-    ap.add_argument("--rtol", type=float, default=1e-6)
-    ap.add_argument("--atol", type=float, default=1e-8)
-    ap.add_argument("--tag", default="", help="result files NAME_TAG.*")
+    add_tolerance_args(ap)
     ap.add_argument("--out", default=str(Path(__file__).parent / "results"))
     args = ap.parse_args()
-    result = f"montecarlo_{args.tag}" if args.tag else "montecarlo"
+    result = result_name("montecarlo", args.tag)
     g = sj.Gains.paper("aftsc", beta1=-1.0, beta2=-1.0)
     spec = MonteCarloSpec(
         n=args.n,

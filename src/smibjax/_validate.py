@@ -1,8 +1,8 @@
-"""Validation helpers shared by the parameter modules.
+"""Validation helpers shared by the parameter modules and the solver options.
 
-Checks only run on concrete values: inside `jax.jit` or `jax.vmap` the leaves are
-tracers and validation is skipped (it already happened when the concrete values were
-built).
+Parameter sets are checked only on concrete values: inside `jax.jit` or `jax.vmap`
+their leaves are tracers and validation is skipped (it already happened when the
+concrete values were built); `smibjax.parameters` decides that with `is_concrete`.
 """
 
 from __future__ import annotations
@@ -31,9 +31,7 @@ def _fmt(x) -> str:
 
 
 def require(ok, owner: str, name: str, value, allowed: str) -> None:
-    """Raise `ParameterError` unless `ok` holds everywhere (skipped under tracing)."""
-    if not is_concrete(ok, value):
-        return
+    """Raise `ParameterError` unless `ok` (concrete, e.g. NumPy) holds everywhere."""
     if not bool(np.all(np.asarray(ok))):
         raise ParameterError(
             f"{owner}.{name} = {_fmt(value)} is not allowed: {allowed}"
@@ -44,3 +42,9 @@ def require_count(name: str, v) -> None:
     """Raise `ParameterError` unless `v` is an integer >= 1 (not a bool)."""
     if isinstance(v, bool) or not isinstance(v, numbers.Integral) or v < 1:
         raise ParameterError(f"{name} = {v!r} is not allowed: must be >= 1")
+
+
+def require_positive(name: str, v) -> None:
+    """Raise `ParameterError` unless the number `v` is finite and > 0."""
+    if not (np.isfinite(v) and v > 0):
+        raise ParameterError(f"{name} = {v:g} is not allowed: must be > 0")

@@ -22,7 +22,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ._validate import require_count
+from ._validate import require_count, require_positive
 from .controller import static_alpha
 from .metrics import metrics
 from .parallel import device_map
@@ -148,9 +148,8 @@ def critical_clearing_times(
 
     alpha_one = all(float(gain_sets[n].alpha) == 1.0 for n in names)
     require_count("max_steps", max_steps)
-    for name, v in (("rtol", rtol), ("atol", atol)):
-        if not (math.isfinite(v) and v > 0):
-            raise ParameterError(f"{name} = {v:g} is not allowed: must be > 0")
+    require_positive("rtol", rtol)
+    require_positive("atol", atol)
     batch_fn = _stable_batch_fn(
         plant, op, init, adaptation, t_end, alpha_one, max_steps, rtol, atol
     )

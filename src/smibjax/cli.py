@@ -273,8 +273,8 @@ def _spec_from_args(args, gains, plant, op, init, dist):
         dist=dist.to_dict(),
         adaptation=args.adaptation,
         t_end=args.t_end,
-        rtol=getattr(args, "rtol", 1e-6),
-        atol=getattr(args, "atol", 1e-8),
+        rtol=args.rtol,
+        atol=args.atol,
         max_steps=args.max_steps,
     )
 
@@ -429,8 +429,8 @@ def _run_cct(args, sets, plant, op, init) -> dict:
         adaptation=args.adaptation,
         t_end=args.t_end,
         max_steps=args.max_steps,
-        rtol=getattr(args, "rtol", 1e-6),
-        atol=getattr(args, "atol", 1e-8),
+        rtol=args.rtol,
+        atol=args.atol,
         progress=True,
     )
 

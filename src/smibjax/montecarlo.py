@@ -25,7 +25,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ._validate import require_count
+from ._validate import require_count, require_positive
 from .controller import static_alpha
 from .io import write_json, write_npz, write_text
 from .metrics import metrics
@@ -109,9 +109,7 @@ class MonteCarloSpec:
                 "or 'realizable'"
             )
         for name in ("t_end", "dt_save", "rtol", "atol"):
-            v = getattr(self, name)
-            if not (math.isfinite(v) and v > 0):
-                raise ParameterError(f"{name} = {v:g} is not allowed: must be > 0")
+            require_positive(name, getattr(self, name))
         ScenarioDistribution.from_dict(self.dist)  # validates
         self.parameters()  # validates the parameter tables
 

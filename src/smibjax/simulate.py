@@ -37,7 +37,7 @@ from jaxtyping import Array, Bool, Float, Int
 
 from ._fixed import solve_fixed
 from ._stepping import RigidSteps
-from ._validate import require_count
+from ._validate import require_count, require_positive
 from .closed_loop import (
     N_DYNAMIC,
     ClosedLoop,
@@ -328,8 +328,7 @@ def simulate(
         ("rtol", rtol),
         ("atol", atol),
     ):
-        if not (np.isfinite(v) and v > 0):
-            raise ParameterError(f"{name} = {v:g} is not allowed: must be > 0")
+        require_positive(name, v)
     if dt_save > t_end:
         raise ParameterError(
             f"dt_save = {dt_save:g} is not allowed: must be <= t_end = {t_end:g}"
