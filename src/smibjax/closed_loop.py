@@ -1,7 +1,9 @@
-"""The closed loop: plant + controller + adaptation law as one vector field.
+"""The closed loop: plant + controller as one vector field.
 
-The integrated state is y = (delta, domega, E, B, th1, th2, J_f, J_r), where J_f and
-J_r are the running control-effort integrals of u_f^2 and u_r^2 (after limits).
+The integrated state is y = (delta, domega, E, B, s_1..s_k, J_f, J_r): the plant state,
+the controller's internal state (k = `controller.n_internal`; the estimates
+(th1, th2) of the paper's adaptive law) and the running control-effort integrals of
+u_f^2 and u_r^2 (after limits).
 """
 
 from __future__ import annotations
@@ -10,7 +12,7 @@ import equinox as eqx
 import jax.numpy as jnp
 from jaxtyping import Array, Bool, Float
 
-from .controller import adaptation_rate, control_law
+from .controllers import AbstractController, Synergetic
 from .network import (
     Stage,
     by_stage,
@@ -33,9 +35,10 @@ __all__ = [
     "healthy",
     "N_STATE",
     "N_DYNAMIC",
+    "as_controller",
 ]
 
-N_STATE = 8  # delta, domega, E, B, th1, th2, J_f, J_r
+N_STATE = 8  # delta, domega, E, B, th1, th2, J_f, J_r (the paper's controller)
 N_DYNAMIC = 6  # the first six enter the error control; the effort integrals do not
 
 # Loss of synchronism is declared (and the run ends as unstable) when delta comes within
@@ -57,29 +60,33 @@ class ClosedLoop(eqx.Module):
     quarter of the cost of a field evaluation).
     """
 
-    gains: Gains
+    controller: AbstractController
     fault: Fault
     plant: Plant
     op: OperatingPoint
-    oracle: bool = eqx.field(static=True)
     input_smoothing: float = eqx.field(static=True)
     fault_network: Stage
-    safe_state: Float[Array, 8]
+    safe_state: Float[Array, " n"]
     b_max: Float[Array, 3]
 
     def __init__(
         self,
-        gains: Gains,
+        gains: Gains | AbstractController,
         fault: Fault,
         plant: Plant,
         op: OperatingPoint,
         oracle: bool = True,
         input_smoothing: float = 0.0,
     ):
-        self.gains, self.fault, self.plant, self.op = gains, fault, plant, op
-        self.oracle, self.input_smoothing = oracle, input_smoothing
+        """`gains`: a controller, or the paper's `Gains` (then the `Synergetic`
+        controller with the `oracle` or realizable update law)."""
+        self.controller = as_controller(gains, oracle)
+        self.fault, self.plant, self.op = fault, plant, op
+        self.input_smoothing = input_smoothing
         self.fault_network = fault_stage(plant, fault.lam, fault.Xf)
-        self.safe_state = initial_state(op, plant, InitialEstimates())
+        self.safe_state = initial_state(
+            op, plant, InitialEstimates(), self.controller, check=False
+        )
         nominal = _b_max(prefault_stage(plant), plant)
         self.b_max = jnp.stack(
             [
@@ -93,6 +100,21 @@ class ClosedLoop(eqx.Module):
         """The network stage in force at t (s)."""
         return stage_at(t, self.fault, self.plant, self.fault_network)
 
+    @property
+    def n_dynamic(self) -> int:
+        """Number of leading states under error control (plant + controller)."""
+        return 4 + self.controller.n_internal
+
+
+def as_controller(
+    gains: Gains | AbstractController, oracle: bool = True
+) -> AbstractController:
+    """`gains` itself if it is a controller, else the paper's `Synergetic` controller
+    with these gains (`oracle`: the paper's update law; False: realizable)."""
+    if isinstance(gains, AbstractController):
+        return gains
+    return Synergetic(gains, oracle=oracle)
+
 
 def _b_max(stage: Stage, plant: Plant):
     """The SVC susceptance B (pu) at which the transfer reactance of `stage`,
@@ -102,14 +124,26 @@ def _b_max(stage: Stage, plant: Plant):
 
 
 def initial_state(
-    op: OperatingPoint, plant: Plant, init: InitialEstimates
-) -> Float[Array, 8]:
-    """y(0): the operating point, the initial estimates and zero effort."""
+    op: OperatingPoint,
+    plant: Plant,
+    init: InitialEstimates,
+    controller: AbstractController | None = None,
+    check: bool = True,
+) -> Float[Array, " n"]:
+    """y(0): the operating point, the controller's initial internal state (for the
+    paper's controller, the default: the initial estimates) and zero effort.
+    `check=False` skips the controller's checks of `init` (for a placeholder state)."""
+    controller = Synergetic(Gains()) if controller is None else controller
     z0 = equilibrium_state(op, plant)
     zero = jnp.zeros_like(z0[0])
-    return jnp.concatenate(
-        [z0, jnp.stack([init.th1 + zero, init.th2 + zero]), jnp.stack([zero, zero])]
-    )
+    if check or not isinstance(controller, Synergetic):
+        s0 = controller.initial_internal(z0, plant, op, init)
+    else:  # a placeholder inside any projection box: the paper's or its centre
+        box = controller.projection
+        s0 = jnp.stack([init.th1 + zero, init.th2 + zero])
+        if box is not None:
+            s0 = 0.5 * (box.lo + box.hi) + zero
+    return jnp.concatenate([z0, s0, jnp.stack([zero, zero])])
 
 
 def closed_loop_vector_field(
@@ -125,12 +159,12 @@ def closed_loop_vector_field(
     """
     ok = healthy(t, y, loop)
     safe = jnp.where(ok, y, loop.safe_state)
-    z, th = safe[:4], safe[4:6]
-    out = control_law(z, th, loop.gains, loop.plant, loop.op)
+    z, s = safe[:4], safe[4 : loop.n_dynamic]
+    stage = loop.stage(t)
+    out = loop.controller(t, z, s, stage, loop.plant, loop.op)
     u_f, u_r = apply_limits(out.u_f, out.u_r, loop.plant, loop.input_smoothing)
-    dz = plant_vector_field(z, u_f, u_r, loop.stage(t), loop.plant)
-    dth = adaptation_rate(out, th, loop.gains, loop.plant, loop.oracle)
-    dy = jnp.concatenate([dz, dth, jnp.stack([u_f**2, u_r**2])])
+    dz = plant_vector_field(z, u_f, u_r, stage, loop.plant)
+    dy = jnp.concatenate([dz, out.d_internal, jnp.stack([u_f**2, u_r**2])])
     return jnp.where(ok, dy, 0.0)
 
 
@@ -149,7 +183,7 @@ def healthy(
     b = loop.b_max
     b_lim = by_stage(t, loop.fault, b[0], b[1], b[2])
     return (
-        jnp.isfinite(jnp.sum(y[:N_DYNAMIC]))
+        jnp.isfinite(jnp.sum(y[: loop.n_dynamic]))
         & (delta > DELTA_MARGIN)
         & (delta < jnp.pi - DELTA_MARGIN)
         & (E > E_MIN)

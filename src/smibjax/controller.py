@@ -188,7 +188,9 @@ def control_law(
         u_r/Tr = -(b2 (f4 + g41 u_f/T0) + x2 + xdot2_hat - spow(-phi2/T2, alpha))
                  / (b2 g42)
     with xdot2_hat = (th2 + th1 x2 - x3 - x4)/M, errors e = x - (delta_e, 0, Pm_ref, 0)
-    and macro-variables phi1 = e1 + e2 + b1 e3, phi2 = e1 + e2 + b2 e4.
+    and macro-variables phi1 = e1 + e2 + b1 e3, phi2 = e1 + e2 + b2 e4. With weighted
+    macro-variables (MODEL.md section 2) phi_i = c_i e1 + e2 + b_i e_(i+2) and the
+    x2 of each law becomes c_i x2 (c1 = c2 = 1: the paper, the default).
     """
     x = paper_coordinates(z, plant)
     f, g = drift_and_gain(z, plant)
@@ -197,14 +199,19 @@ def control_law(
     e3 = x[2] - op.Pm_ref
     e4 = x[3]
     b1, b2, a = gains.beta1, gains.beta2, gains.alpha
-    phi1 = e1 + e2 + b1 * e3
-    phi2 = e1 + e2 + b2 * e4
+    c1, c2 = gains.c1, gains.c2
+    phi1 = c1 * e1 + e2 + b1 * e3
+    phi2 = c2 * e1 + e2 + b2 * e4
     xdot2_hat = (th_hat[1] + th_hat[0] * x[1] - x[2] - x[3]) / plant.M
-    common = x[1] + xdot2_hat
-    v1 = -(b1 * f[0] + common - spow(-phi1 / gains.T1, a)) / (b1 * g[0, 0])
-    v2 = -(b2 * (f[1] + g[1, 0] * v1) + common - spow(-phi2 / gains.T2, a)) / (
-        b2 * g[1, 1]
+    # (c x2 + xdot2_hat) grouped as the paper's common term x2 + xdot2_hat was
+    v1 = -(b1 * f[0] + (c1 * x[1] + xdot2_hat) - spow(-phi1 / gains.T1, a)) / (
+        b1 * g[0, 0]
     )
+    v2 = -(
+        b2 * (f[1] + g[1, 0] * v1)
+        + (c2 * x[1] + xdot2_hat)
+        - spow(-phi2 / gains.T2, a)
+    ) / (b2 * g[1, 1])
     return ControlOutput(
         u_f=plant.T0 * v1, u_r=plant.Tr * v2, x=x, phi=jnp.stack([phi1, phi2])
     )

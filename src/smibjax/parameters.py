@@ -149,7 +149,9 @@ class Gains(eqx.Module):
 
     `alpha = r/p` in (1/2, 1]: alpha < 1 is the finite-time controller (AFTSC, paper
     alpha = 5/7), alpha = 1 the asymptotic baseline (ASC). Paper defaults; k1, k2 are
-    not given in the paper and default to 1.
+    not given in the paper and default to 1; c1 = c2 = 1 is the paper's macro-variable
+    (other values weight e1 against e2 and move the manifold's speed ceiling to about
+    -c_i 1/s).
     """
 
     beta1: Scalar = _field(50.0)  # macro-variable weight of e3 (phi1)
@@ -161,12 +163,19 @@ class Gains(eqx.Module):
     gamma2: Scalar = _field(5.0)  # adaptation gain of th2 (estimate of Pm)
     k1: Scalar = _field(1.0)  # oracle term weight of th1
     k2: Scalar = _field(1.0)  # oracle term weight of th2
+    # Weights of e1 in the macro-variables, phi_i = c_i e1 + e2 + beta_i e_(i+2)
+    # (MODEL.md section 2, "A ceiling on the manifold's speed"): 1 is the paper's form.
+    c1: Scalar = _field(1.0)
+    c2: Scalar = _field(1.0)
 
     def __check_init__(self):
         p = _values(self)
         if p is None:
             return
         o = "Gains"
+        for name in ("c1", "c2"):
+            v = getattr(p, name)
+            require((v > 0) & np.isfinite(v), o, name, v, "must be > 0 (1: the paper)")
         for name in ("beta1", "beta2"):
             v = getattr(p, name)
             require(

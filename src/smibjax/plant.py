@@ -21,6 +21,7 @@ __all__ = [
     "plant_vector_field",
     "apply_limits",
     "equilibrium_state",
+    "operating_field_voltage",
 ]
 
 Scalar = Float[Array, ""]
@@ -126,3 +127,13 @@ def equilibrium_state(op: OperatingPoint, plant: Plant) -> State:
     e_e = op.Pm_ref * xs / (plant.V * jnp.sin(op.delta_e))
     zero = jnp.zeros_like(e_e)
     return jnp.stack([op.delta_e + zero, zero, e_e, plant.B0 + zero])
+
+
+def operating_field_voltage(op: OperatingPoint, plant: Plant) -> Scalar:
+    """E_fd0 (pu): the field voltage that holds E' at its operating-point value on the
+    pre-fault network, (Xds E_e - (Xd - X'd) V cos delta_e) / Xs (dE/dt = 0)."""
+    stage = prefault_stage(plant)
+    xs = plant.X1 + stage.X2
+    xds = plant.Xd + plant.XT + stage.X2
+    e_e = equilibrium_state(op, plant)[2]
+    return (xds * e_e - (plant.Xd - plant.Xdp) * plant.V * jnp.cos(op.delta_e)) / xs

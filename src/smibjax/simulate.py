@@ -39,13 +39,14 @@ from ._fixed import solve_fixed
 from ._stepping import RigidSteps
 from ._validate import require_count, require_positive
 from .closed_loop import (
-    N_DYNAMIC,
     ClosedLoop,
+    as_controller,
     closed_loop_vector_field,
     healthy,
     initial_state,
 )
-from .controller import control_law, static_alpha
+from .controller import static_alpha
+from .controllers import AbstractController, Synergetic
 from .network import prefault_stage, stage_at
 from .parameters import (
     Fault,
@@ -79,10 +80,15 @@ class Trajectory(eqx.Module):
     E: Series  # transient EMF E' (pu)
     B: Series  # SVC susceptance (pu)
     Vt: Series  # SVC-bus voltage (pu)
-    theta_hat: Float[Array, "*batch n 2"]  # estimates of theta = (-D, Pm)
-    phi: Float[Array, "*batch n 2"]  # macro-variables (phi1, phi2)
+    # estimates of theta = (-D, Pm) (0 for a controller without estimates)
+    theta_hat: Float[Array, "*batch n 2"]
+    # the controller's two diagnostics: macro-variables (phi1, phi2) of the paper's
+    # controller (`AbstractController.diagnostic_names`)
+    phi: Float[Array, "*batch n 2"]
     u_f: Series  # field voltage reaching the plant (after limits, pu)
     u_r: Series  # SVC command reaching the plant (after limits, pu)
+    u_f_cmd: Series  # field voltage commanded by the controller (before limits, pu)
+    u_r_cmd: Series  # SVC command commanded by the controller (before limits, pu)
     effort: Float[Array, "*batch 2"]  # integrals of u_f^2 and u_r^2 over [0, t_end]
     stable: Bool[Array, "*batch"]  # no loss of synchronism, delta in band at t_end
     lost_sync: Bool[Array, "*batch"]  # the run left 0 < delta < pi (or the domain)
@@ -103,9 +109,14 @@ def is_stable(lost_sync, delta_end, delta_e, delta_band: float = DEFAULT_DELTA_B
     return (~lost_sync) & (jnp.abs(delta_end - delta_e) <= delta_band)
 
 
-def _rms_dynamic(y):
-    """RMS norm over the dynamic states only (the effort integrals are outputs)."""
-    return jnp.sqrt(jnp.mean(y[:N_DYNAMIC] ** 2))
+class _RmsDynamic(eqx.Module):
+    """RMS norm over the first `n` (dynamic) states only: the effort integrals are
+    outputs."""
+
+    n: int = eqx.field(static=True)
+
+    def __call__(self, y):
+        return jnp.sqrt(jnp.mean(y[: self.n] ** 2))
 
 
 _SOLVERS = {"tsit5": dfx.Tsit5, "dopri5": dfx.Dopri5, "dopri8": dfx.Dopri8}
@@ -117,7 +128,9 @@ def _solve_adaptive(loop, y0, ts, jumps, method, rtol, atol, max_steps, checkpoi
     budget exhausted, t_stop, accepted steps, rejected steps)."""
     n = ts.shape[0]
     controller = dfx.ClipStepSizeController(
-        RigidSteps(dfx.PIDController(rtol=rtol, atol=atol, norm=_rms_dynamic)),
+        RigidSteps(
+            dfx.PIDController(rtol=rtol, atol=atol, norm=_RmsDynamic(loop.n_dynamic))
+        ),
         jump_ts=jumps,
     )
     event = dfx.Event(cond_fn=lambda t, y, args, **kw: ~healthy(t, y, args))
@@ -159,15 +172,33 @@ def _solve_adaptive(loop, y0, ts, jumps, method, rtol, atol, max_steps, checkpoi
     )
 
 
+def _resolve_controller(gains, adaptation) -> AbstractController:
+    """The controller to simulate: `gains` as a controller (`Gains`: the paper's law,
+    oracle unless `adaptation` says otherwise), with alpha = 1 compiled as a constant
+    where it is known to be 1 (ASC, concrete gains: spow(y, 1) is y)."""
+    if adaptation not in (None, "oracle", "realizable"):
+        raise ParameterError(
+            f"adaptation = {adaptation!r} is not allowed: must be 'oracle' or "
+            "'realizable'"
+        )
+    gains = Gains() if gains is None else gains
+    controller = as_controller(gains, adaptation != "realizable")
+    if isinstance(controller, Synergetic):
+        oracle = controller.oracle if adaptation is None else adaptation == "oracle"
+        controller = Synergetic(
+            static_alpha(controller.gains), oracle, controller.projection
+        )
+    return controller
+
+
 @eqx.filter_jit
 def _simulate(
-    gains: Gains,
+    controller: AbstractController,
     fault: Fault,
     plant: Plant,
     op: OperatingPoint,
     init: InitialEstimates,
     *,
-    oracle: bool,
     t_end: float,
     dt_save: float,
     solver: str,
@@ -181,14 +212,14 @@ def _simulate(
     checkpoints: int | None,
 ) -> Trajectory:
     loop = ClosedLoop(
-        gains=gains,
+        gains=controller,
         fault=fault,
         plant=plant,
         op=op,
-        oracle=oracle,
         input_smoothing=input_smoothing,
     )
-    y0 = initial_state(op, plant, init)
+    y0 = initial_state(op, plant, init, controller)
+    n_dyn = loop.n_dynamic
     ts_np = np.linspace(0.0, t_end, int(round(t_end / dt_save)) + 1)
     ts = jnp.asarray(ts_np)
     jumps = jnp.stack([fault.t_fault, fault.t_clear, fault.t_reclose])
@@ -218,12 +249,17 @@ def _simulate(
 
     def observe(t, y):
         z = y[:4]
-        out = control_law(z, y[4:6], gains, plant, op)
+        stage = stage_at(t, fault, plant)
+        out = controller(t, z, y[4:n_dyn], stage, plant, op)
         u_f, u_r = apply_limits(out.u_f, out.u_r, plant, input_smoothing)
-        vt = terminal_voltage(z[0], z[2], z[3], stage_at(t, fault, plant), plant)
-        return vt, out.phi, u_f, u_r
+        vt = terminal_voltage(z[0], z[2], z[3], stage, plant)
+        return vt, out.diagnostics, u_f, u_r, out.u_f, out.u_r
 
-    vt, phi, u_f, u_r = jax.vmap(observe)(ts, ys)
+    vt, phi, u_f, u_r, u_f_cmd, u_r_cmd = jax.vmap(observe)(ts, ys)
+    if controller.has_estimates:
+        theta_hat = ys[:, 4:6]
+    else:
+        theta_hat = jnp.zeros((ys.shape[0], 2), ys.dtype)
     z_e = equilibrium_state(op, plant)
     vt_e = terminal_voltage(z_e[0], z_e[2], z_e[3], prefault_stage(plant), plant)
     delta = ys[:, 0]
@@ -235,11 +271,13 @@ def _simulate(
         E=ys[:, 2],
         B=ys[:, 3],
         Vt=vt,
-        theta_hat=ys[:, 4:6],
+        theta_hat=theta_hat,
         phi=phi,
         u_f=u_f,
         u_r=u_r,
-        effort=y_hold[6:8],
+        u_f_cmd=u_f_cmd,
+        u_r_cmd=u_r_cmd,
+        effort=y_hold[n_dyn : n_dyn + 2],
         stable=stable,
         lost_sync=lost_sync,
         budget_exhausted=exhausted,
@@ -253,13 +291,13 @@ def _simulate(
 
 
 def simulate(
-    gains: Gains | None = None,
+    gains: Gains | AbstractController | None = None,
     fault: Fault | None = None,
     plant: Plant | None = None,
     *,
     op: OperatingPoint | None = None,
     init: InitialEstimates | None = None,
-    adaptation: Literal["oracle", "realizable"] = "oracle",
+    adaptation: Literal["oracle", "realizable"] | None = None,
     t_end: float = 10.0,
     dt_save: float = 0.01,
     solver: Literal["adaptive", "fixed"] = "adaptive",
@@ -276,11 +314,15 @@ def simulate(
 
     **Arguments:**
 
-    - `gains`, `fault`, `plant`, `op`, `init`: parameter sets (defaults: the paper's
-      AFTSC gains, the paper's fault, the paper plant, operating point and initial
-      estimates). Any of them may carry arrays; vmap `simulate` over them for batches.
-    - `adaptation`: `"oracle"` (the paper's update law, using the true theta in its
-      k-terms) or `"realizable"` (k1 = k2 = 0).
+    - `gains`: the paper's `Gains` (the AFTSC/ASC law, `smibjax.controllers.Synergetic`)
+      or any controller (`smibjax.controllers`; default: the paper's AFTSC gains).
+    - `fault`, `plant`, `op`, `init`: parameter sets (defaults: the paper's fault, the
+      paper plant, operating point and initial estimates). Any of them may carry
+      arrays; vmap `simulate` over them for batches.
+    - `adaptation`: for the paper's law, `"oracle"` (its update law, using the true
+      theta in its k-terms; the default for `Gains`) or `"realizable"` (without them);
+      None keeps a `Synergetic` controller's own setting. Other controllers have no
+      adaptation and ignore it.
     - `t_end`, `dt_save`: horizon and sampling interval of the returned arrays (s).
     - `solver`: `"adaptive"` (PID step-size control with `rtol`, `atol`) or `"fixed"`
       (steps of `dt` (s) on the grid k dt, with the sample times and the switch times
@@ -302,17 +344,11 @@ def simulate(
 
     **Returns:** a `Trajectory`.
     """
-    # alpha = 1 known here (ASC, concrete gains): compile spow(y, 1) as y.
-    gains = static_alpha(Gains() if gains is None else gains)
+    controller = _resolve_controller(gains, adaptation)
     fault = Fault() if fault is None else fault
     plant = Plant() if plant is None else plant
     op = OperatingPoint() if op is None else op
     init = InitialEstimates() if init is None else init
-    if adaptation not in ("oracle", "realizable"):
-        raise ParameterError(
-            f"adaptation = {adaptation!r} is not allowed: must be 'oracle' or "
-            "'realizable'"
-        )
     if solver not in ("adaptive", "fixed"):
         raise ParameterError(
             f"solver = {solver!r} is not allowed: must be 'adaptive' or 'fixed'"
@@ -337,12 +373,11 @@ def simulate(
         max_steps = 50_000
     require_count("max_steps", max_steps)
     return _simulate(
-        gains,
+        controller,
         fault,
         plant,
         op,
         init,
-        oracle=adaptation == "oracle",
         t_end=float(t_end),
         dt_save=float(dt_save),
         solver=solver,

@@ -1,0 +1,93 @@
+"""Controllers of the closed loop, by name.
+
+| name | controller | parameters |
+|---|---|---|
+| `aftsc` | `Synergetic`, alpha = 5/7 (the paper's AFTSC) | `Gains` |
+| `asc` | `Synergetic`, alpha = 1 (the paper's ASC) | `Gains` |
+| `none` | `NoControl`: E_fd0 held, u_r = 0 | none |
+| `avr-pss` | `AvrPss`: static exciter + PSS + SVC voltage regulator | its fields |
+
+Adding a controller: write one module with a subclass of `AbstractController`
+(`controllers/base.py`), and register its name in `CONTROLLERS` below.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+
+from .._validate import ParameterError
+from ..parameters import Gains
+from .avr_pss import AvrPss
+from .base import AbstractController, ControllerOutput
+from .none import NoControl
+from .synergetic import EstimateBox, Synergetic, project
+
+__all__ = [
+    "AbstractController",
+    "ControllerOutput",
+    "Synergetic",
+    "EstimateBox",
+    "NoControl",
+    "AvrPss",
+    "CONTROLLERS",
+    "make_controller",
+    "controller_parameter_names",
+    "project",
+]
+
+CONTROLLERS: dict[str, type[AbstractController]] = {
+    "aftsc": Synergetic,
+    "asc": Synergetic,
+    "none": NoControl,
+    "avr-pss": AvrPss,
+}
+
+
+def _check_name(name: str) -> None:
+    if name not in CONTROLLERS:
+        raise ParameterError(
+            f"controller = {name!r} is not allowed: must be one of "
+            f"{', '.join(CONTROLLERS)}"
+        )
+
+
+def controller_parameter_names(name: str) -> tuple[str, ...]:
+    """The tunable parameter names of controller `name`."""
+    _check_name(name)
+    return tuple(CONTROLLERS[name].parameter_kinds())
+
+
+def make_controller(
+    name: str,
+    params: Mapping[str, float] | None = None,
+    *,
+    adaptation: str = "oracle",
+    projection: EstimateBox | None = None,
+) -> AbstractController:
+    """Controller `name` with its defaults overridden by `params` (an unknown
+    parameter name is a `ParameterError`). For `aftsc` / `asc` the defaults are the
+    paper's gains (alpha = 5/7 or 1), `adaptation` is `oracle` or `realizable` and
+    `projection` an optional `EstimateBox`; the other controllers take neither."""
+    _check_name(name)
+    params = dict(params or {})
+    allowed = controller_parameter_names(name)
+    for k in params:
+        if k not in allowed:
+            raise ParameterError(
+                f"{k!r} is not a parameter of controller {name!r}: allowed are "
+                f"{', '.join(allowed) or '(none)'}"
+            )
+    cls = CONTROLLERS[name]
+    if cls is Synergetic:
+        if adaptation not in ("oracle", "realizable"):
+            raise ParameterError(
+                f"adaptation = {adaptation!r} is not allowed: must be 'oracle' or "
+                "'realizable'"
+            )
+        gains = Gains.paper(name, **params)
+        return Synergetic(gains, oracle=adaptation == "oracle", projection=projection)
+    if projection is not None:
+        raise ParameterError(
+            f"a projection box is an option of aftsc/asc, not of controller {name!r}"
+        )
+    return cls(**params)

@@ -1,0 +1,78 @@
+"""The controller interface: what the closed loop asks of any controller.
+
+A controller is an equinox Module whose fields are its parameters (so a controller can
+be vmapped over, differentiated and tuned like any pytree). From the measured plant
+state z = (delta, domega, E, B), its own internal state s and the network stage in
+force (for measured quantities such as the SVC-bus voltage), it computes the commanded
+inputs (u_f, u_r) (before the plant's limits), ds/dt and two diagnostic signals.
+"""
+
+from __future__ import annotations
+
+import abc
+from typing import ClassVar, NamedTuple
+
+import equinox as eqx
+from jaxtyping import Array, Float
+
+from ..network import Stage
+from ..parameters import InitialEstimates, OperatingPoint, Plant
+
+__all__ = ["AbstractController", "ControllerOutput"]
+
+Scalar = Float[Array, ""]
+
+
+class ControllerOutput(NamedTuple):
+    """What a controller computes from one measurement."""
+
+    u_f: Scalar  # field-voltage command (pu), before the plant's limits
+    u_r: Scalar  # SVC command (pu), before the plant's limits
+    d_internal: Float[Array, " k"]  # d/dt of the controller's internal state
+    diagnostics: Float[Array, "2"]  # two signals named by `diagnostic_names`
+
+
+class AbstractController(eqx.Module):
+    """A controller of the SMIB + SVC plant.
+
+    Subclasses set the class variables and implement `initial_internal` and
+    `__call__`; `parameter_kinds` names the tunable fields and the transform that
+    keeps each legal while it trains (see `tuning/params.py`: `log` for > 0,
+    `softplus` for >= 0, `inverse` for a non-zero sign-free gain, `alpha` for
+    (1/2, 1], `free`).
+    """
+
+    n_internal: ClassVar[int]
+    has_estimates: ClassVar[bool] = False  # internal[:2] estimates theta = (-D, Pm)
+    diagnostic_names: ClassVar[tuple[str, str]] = ("-", "-")
+
+    @abc.abstractmethod
+    def initial_internal(
+        self,
+        z0: Float[Array, "4"],
+        plant: Plant,
+        op: OperatingPoint,
+        init: InitialEstimates,
+    ) -> Float[Array, " k"]:
+        """The internal state at t = 0 (the plant is at its operating point z0)."""
+
+    @abc.abstractmethod
+    def __call__(
+        self,
+        t: Scalar,
+        z: Float[Array, "4"],
+        s: Float[Array, " k"],
+        stage: Stage,
+        plant: Plant,
+        op: OperatingPoint,
+    ) -> ControllerOutput:
+        """Commanded inputs, internal-state derivative and diagnostics at time t (s)."""
+
+    def parameters(self) -> dict[str, float]:
+        """The tunable parameters as plain floats (the gains-file layout)."""
+        return {n: float(getattr(self, n)) for n in self.parameter_kinds()}
+
+    @classmethod
+    @abc.abstractmethod
+    def parameter_kinds(cls) -> dict[str, str]:
+        """Tunable parameter name -> transform kind (see the class docstring)."""
