@@ -29,7 +29,7 @@ class ControllerOutput(NamedTuple):
     u_f: Scalar  # field-voltage command (pu), before the plant's limits
     u_r: Scalar  # SVC command (pu), before the plant's limits
     d_internal: Float[Array, " k"]  # d/dt of the controller's internal state
-    diagnostics: Float[Array, "2"]  # two signals named by `diagnostic_names`
+    diagnostics: Float[Array, 2]  # two signals named by `diagnostic_names`
 
 
 class AbstractController(eqx.Module):
@@ -49,7 +49,7 @@ class AbstractController(eqx.Module):
     @abc.abstractmethod
     def initial_internal(
         self,
-        z0: Float[Array, "4"],
+        z0: Float[Array, 4],
         plant: Plant,
         op: OperatingPoint,
         init: InitialEstimates,
@@ -60,7 +60,7 @@ class AbstractController(eqx.Module):
     def __call__(
         self,
         t: Scalar,
-        z: Float[Array, "4"],
+        z: Float[Array, 4],
         s: Float[Array, " k"],
         stage: Stage,
         plant: Plant,

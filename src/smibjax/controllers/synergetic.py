@@ -45,8 +45,8 @@ class EstimateBox(eqx.Module):
     [th2_min, th2_max] (pu). `layer` (a fraction of each half-width) is the boundary
     layer in which the projection phases in."""
 
-    lo: Float[Array, "2"] = eqx.field(converter=_f)
-    hi: Float[Array, "2"] = eqx.field(converter=_f)
+    lo: Float[Array, 2] = eqx.field(converter=_f)
+    hi: Float[Array, 2] = eqx.field(converter=_f)
     layer: float = eqx.field(static=True, default=0.1)
 
     def __check_init__(self):
@@ -77,8 +77,8 @@ class EstimateBox(eqx.Module):
 
 
 def project(
-    th: Float[Array, "2"], rate: Float[Array, "2"], box: EstimateBox
-) -> Float[Array, "2"]:
+    th: Float[Array, 2], rate: Float[Array, 2], box: EstimateBox
+) -> Float[Array, 2]:
     """Smooth projection of the estimate rate onto `box` (per component):
     rate (1 - w) where the rate points outwards, rate elsewhere, with w rising from 0
     to 1 (smoothstep, C1) across the boundary layer just inside the box. At the
