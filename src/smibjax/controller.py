@@ -208,9 +208,7 @@ def control_law(
         b1 * g[0, 0]
     )
     v2 = -(
-        b2 * (f[1] + g[1, 0] * v1)
-        + (c2 * x[1] + xdot2_hat)
-        - spow(-phi2 / gains.T2, a)
+        b2 * (f[1] + g[1, 0] * v1) + (c2 * x[1] + xdot2_hat) - spow(-phi2 / gains.T2, a)
     ) / (b2 * g[1, 1])
     return ControlOutput(
         u_f=plant.T0 * v1, u_r=plant.Tr * v2, x=x, phi=jnp.stack([phi1, phi2])
