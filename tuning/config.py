@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import copy
+import math
 from pathlib import Path
 
 from smibjax import ParameterError
@@ -65,11 +66,14 @@ def check_config(cfg: dict) -> None:
         if not ok:
             raise ParameterError(f"{key} = {value!r} is not allowed: {allowed}")
 
+    from smibjax.controllers import CONTROLLERS
+
+    tunable = [c for c in CONTROLLERS if c != "none"]
     req(
-        cfg["controller"] in ("aftsc", "asc"),
+        cfg["controller"] in tunable,
         "controller",
         cfg["controller"],
-        "must be aftsc or asc",
+        f"must be one of {', '.join(tunable)}",
     )
     req(
         cfg["preset"] in ("paper", "realistic"),
@@ -119,6 +123,49 @@ def check_config(cfg: dict) -> None:
             t["t_end"],
             f"must be after the latest fault time (scenarios.t_fault up to {tf[1]:g} s)",
         )
+    req(
+        t["solver"] in ("adaptive", "fixed"),
+        "train.solver",
+        t["solver"],
+        "must be adaptive or fixed",
+    )
+    for key in ("rtol", "atol"):
+        req(
+            isinstance(t[key], (int, float)) and math.isfinite(t[key]) and t[key] > 0,
+            f"train.{key}",
+            t[key],
+            "must be > 0",
+        )
+    req(
+        isinstance(t["max_steps"], int) and t["max_steps"] >= 1,
+        "train.max_steps",
+        t["max_steps"],
+        "must be an integer >= 1",
+    )
+    c = cfg["continuation"]
+    req(
+        isinstance(c["steps"], int) and c["steps"] >= 0,
+        "continuation.steps",
+        c["steps"],
+        "must be an integer >= 0",
+    )
+    req(
+        isinstance(c["start"], (int, float))
+        and math.isfinite(c["start"])
+        and c["start"] >= 1,
+        "continuation.start",
+        c["start"],
+        "must be a finite number >= 1",
+    )
+    o = cfg["options"]
+    req(
+        isinstance(o["phi_layer"], (int, float))
+        and math.isfinite(o["phi_layer"])
+        and o["phi_layer"] >= 0,
+        "options.phi_layer",
+        o["phi_layer"],
+        "must be a finite number >= 0 (0: the exact law)",
+    )
     req(
         t["input_smoothing"] >= 0,
         "train.input_smoothing",

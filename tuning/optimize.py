@@ -26,25 +26,28 @@ import numpy as np  # noqa: E402
 import optax  # noqa: E402
 
 import smibjax as sj  # noqa: E402
+from smibjax.controllers import (  # noqa: E402
+    CONTROLLERS,
+    EstimateBox,
+    Synergetic,
+    make_controller,
+)
 from smibjax.io import atomic_write, read_gains, write_json, write_text  # noqa: E402
-from smibjax.losses import LossWeights  # noqa: E402
-from smibjax.scenarios import FaultDistribution, sample_faults  # noqa: E402
+from smibjax.losses import TERM_NAMES, LossWeights  # noqa: E402
+from smibjax.scenarios import ScenarioDistribution  # noqa: E402
 
 from .config import check_config, load_config  # noqa: E402
 from .params import GainSpace, gains_to_dict  # noqa: E402
 from .search import cross_entropy_search, make_population_score  # noqa: E402
-from .train import Setup, make_train_step, make_validate, summarize  # noqa: E402
+from .train import (  # noqa: E402
+    Setup,
+    draw_scenarios,
+    make_train_step,
+    make_validate,
+    summarize,
+)
 
 CHECKPOINT = "checkpoint.pkl"
-TERM_NAMES = (
-    "settling_delta",
-    "settling_Vt",
-    "overshoot",
-    "effort",
-    "divergence",
-    "margin",
-    "instability",
-)
 
 
 class UsageError(Exception):
@@ -70,14 +73,15 @@ def parse_args(argv):
         help="continue the run in --out from its last checkpoint",
     )
     p.add_argument("--preset", choices=["paper", "realistic"])
-    p.add_argument("--controller", choices=["aftsc", "asc"])
+    p.add_argument("--controller", choices=[c for c in CONTROLLERS if c != "none"])
+    p.add_argument("--adaptation", choices=["oracle", "realizable"])
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     return p.parse_args(argv)
 
 
 def resolve_config(args) -> dict:
     cfg = load_config(args.config)
-    for key in ("init", "steps", "batch", "seed", "preset", "controller"):
+    for key in ("init", "steps", "batch", "seed", "preset", "controller", "adaptation"):
         v = getattr(args, key)
         if v is not None:
             cfg[key] = v
@@ -85,40 +89,106 @@ def resolve_config(args) -> dict:
     return cfg
 
 
+def parameter_names(cfg) -> tuple[str, ...]:
+    """The tunable parameter names of the configured controller."""
+    return tuple(CONTROLLERS[cfg["controller"]].parameter_kinds())
+
+
 def initial_gains(cfg) -> dict[str, float]:
-    base = gains_to_dict(sj.Gains.paper(cfg["controller"]))
+    """The start: the controller's defaults (the paper's gains for aftsc/asc),
+    overridden by the gains file `init` (if not "paper"), validated."""
+    base = make_controller(cfg["controller"]).parameters()
     if cfg["init"] != "paper":
-        base.update(read_gains(cfg["init"]))
-        sj.Gains(**base)  # validate
+        names = parameter_names(cfg)
+        table = read_gains(cfg["init"]) if names == sj.GAIN_NAMES else None
+        if table is None:
+            from smibjax.io import read_table
+
+            table = read_table(cfg["init"])
+        base.update(table)
+        make_controller(cfg["controller"], base)  # validate (unknown names too)
     return base
+
+
+def projection_box(cfg) -> EstimateBox | None:
+    """[options] projection = [[th1_min, th1_max], [th2_min, th2_max]] or [] (off)."""
+    box = cfg["options"]["projection"]
+    if box in ([], None):
+        return None
+    try:
+        (a, b), (c, d) = box
+        lo, hi = [float(a), float(c)], [float(b), float(d)]
+    except (TypeError, ValueError):
+        raise sj.ParameterError(
+            f"options.projection = {box!r} is not allowed: must be "
+            "[[th1_min, th1_max], [th2_min, th2_max]] or [] (off)"
+        ) from None
+    return EstimateBox(lo, hi)
+
+
+def continuation_scale(cfg, step: int) -> float:
+    """The factor on the input limits at training step `step`: `start` at step 0,
+    falling geometrically to 1 at step `steps` of [continuation] (1 throughout when
+    `steps` = 0): the tuner starts on a nearly unlimited plant, where the gradient
+    leads off the paper's unstable gains, and ends on the real one."""
+    c = cfg["continuation"]
+    n, start = int(c["steps"]), float(c["start"])
+    if n <= 0 or step >= n:
+        return 1.0
+    return start ** (1.0 - step / n)
 
 
 def build(cfg):
     init = initial_gains(cfg)
+    names = parameter_names(cfg)
+    controller_cls = CONTROLLERS[cfg["controller"]]
     space = GainSpace.build(
         init,
-        cfg["gains"]["freeze"],
-        cfg["gains"]["bounds"],
+        [n for n in cfg["gains"]["freeze"] if n in names or n not in sj.GAIN_NAMES],
+        {k: v for k, v in cfg["gains"]["bounds"].items() if k in names},
         float(cfg["gains"]["beta_abs_min"]),
+        kinds=controller_cls.parameter_kinds(),
+        make=sj.Gains if controller_cls is Synergetic else controller_cls,
     )
     lw = cfg["loss"]
     weights = LossWeights(
         **{k: float(lw[k]) for k in (*TERM_NAMES, "delta_band", "Vt_band")}
     )
+    synergetic = controller_cls is Synergetic
+    box = projection_box(cfg) if synergetic else None
+    if box is not None:
+        th0 = (sj.InitialEstimates().th1, sj.InitialEstimates().th2)
+        if not box.contains(th0):
+            raise sj.ParameterError(
+                f"options.projection = {cfg['options']['projection']!r} is not "
+                f"allowed: it must contain the initial estimates (th1, th2) = "
+                f"({float(th0[0]):g}, {float(th0[1]):g})"
+            )
+    t = cfg["train"]
     setup = Setup(
         space=space,
         plant=sj.Plant.preset(cfg["preset"]),
         weights=weights,
         adaptation=cfg["adaptation"],
-        train_t_end=float(cfg["train"]["t_end"]),
-        train_dt=float(cfg["train"]["dt"]),
-        input_smoothing=float(cfg["train"]["input_smoothing"]),
+        train_t_end=float(t["t_end"]),
+        train_dt=float(t["dt"]),
+        input_smoothing=float(t["input_smoothing"]),
         tail_weight=float(lw["tail_weight"]),
         cvar_q=float(lw["cvar_q"]),
         val_t_end=float(cfg["validation"]["t_end"]),
-        train_checkpoints=int(cfg["train"]["checkpoints"]) or None,
+        train_checkpoints=int(t["checkpoints"]) or None,
+        controller=cfg["controller"],
+        projection=box,
+        phi_layer=float(cfg["options"]["phi_layer"]),
+        train_solver=str(t["solver"]),
+        train_rtol=float(t["rtol"]),
+        train_atol=float(t["atol"]),
+        train_max_steps=int(t["max_steps"]),
     )
-    dist = FaultDistribution.from_dict(cfg["scenarios"])
+    # D = [] in a config: the plant's own damping (not drawn)
+    dist = ScenarioDistribution.from_dict(
+        {k: v for k, v in cfg["scenarios"].items() if not (k == "D" and v == [])}
+    )
     opt = optax.chain(
         optax.zero_nans(),
         optax.clip_by_global_norm(float(cfg["optimizer"]["clip_norm"])),
@@ -241,7 +311,9 @@ def _search(cfg, space, setup, dist, raw0, quiet):
     sc = cfg["search"]
     if int(sc["generations"]) == 0:
         return raw0, []
-    faults = sample_faults(jax.random.PRNGKey(int(sc["seed"])), int(sc["batch"]), dist)
+    faults = draw_scenarios(
+        jax.random.PRNGKey(int(sc["seed"])), int(sc["batch"]), dist, setup.plant
+    )
 
     def report(row):
         if not quiet:
@@ -284,8 +356,8 @@ def run(
     steps, batch, seed = int(cfg["steps"]), int(cfg["batch"]), int(cfg["seed"])
     train_step, validate_fn = _engine(cfg, setup)
     n_val = int(cfg["validation"]["n"])
-    val_faults = sample_faults(
-        jax.random.PRNGKey(int(cfg["validation"]["seed"])), n_val, dist
+    val_faults = draw_scenarios(
+        jax.random.PRNGKey(int(cfg["validation"]["seed"])), n_val, dist, setup.plant
     )
 
     def validate(raw):
@@ -317,9 +389,14 @@ def run(
     done_here = 0
     while state["step"] < steps:
         step = state["step"]
-        faults = sample_faults(jax.random.fold_in(key, step), batch, dist)
+        scenarios = draw_scenarios(
+            jax.random.fold_in(key, step), batch, dist, setup.plant
+        )
+        scale = continuation_scale(cfg, step)
         t0 = time.perf_counter()
-        loss, per, terms, stable, grads, dropped = train_step(state["raw"], faults)
+        loss, per, terms, stable, grads, dropped = train_step(
+            state["raw"], scenarios, scale
+        )
         updates, opt_state = opt.update(grads, state["opt_state"], state["raw"])
         raw = optax.apply_updates(state["raw"], updates)
         gnorm = float(
@@ -328,6 +405,7 @@ def run(
         row = {
             "step": step + 1,
             "loss": float(loss),
+            "limit_scale": scale,
             "train_stable_fraction": float(np.mean(np.asarray(stable))),
             **{f"term_{k}": float(np.mean(np.asarray(terms[k]))) for k in TERM_NAMES},
             "grad_norm": gnorm,

@@ -19,23 +19,15 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Callable
 
 import jax
 import jax.numpy as jnp
 
 from smibjax import GAIN_NAMES, Gains, ParameterError
+from smibjax.controllers.synergetic import GAIN_KINDS
 
-KIND = {
-    "beta1": "inverse",
-    "beta2": "inverse",
-    "T1": "log",
-    "T2": "log",
-    "gamma1": "log",
-    "gamma2": "log",
-    "k1": "softplus",
-    "k2": "softplus",
-    "alpha": "alpha",
-}
+KIND = dict(GAIN_KINDS)  # the paper's gains (c1, c2: weighted macro-variables)
 _KAPPA_MIN = 1e-12
 
 
@@ -71,24 +63,36 @@ class GainSpace:
     frozen: dict[str, float]
     bounds: dict[str, tuple[float, float]]
     beta_abs_min: float = 0.0
+    kinds: dict[str, str] = dataclasses.field(default_factory=lambda: dict(KIND))
+    make: Callable = Gains  # the parameter set's class (fields = parameter names)
 
     @classmethod
     def build(
-        cls, init: dict[str, float], freeze=(), bounds=None, beta_abs_min: float = 0.0
+        cls,
+        init: dict[str, float],
+        freeze=(),
+        bounds=None,
+        beta_abs_min: float = 0.0,
+        kinds: dict[str, str] | None = None,
+        make: Callable = Gains,
     ) -> GainSpace:
         """`beta_abs_min` > 0 keeps |beta_i| >= it (kappa_i in [-1/it, 1/it]) while
-        leaving beta free to change sign through +-inf."""
+        leaving beta free to change sign through +-inf. `kinds` (parameter name ->
+        transform, default the paper's gains) and `make` (their parameter set)
+        describe another controller's parameters (`parameter_kinds()`)."""
+        kinds = dict(KIND if kinds is None else kinds)
+        names = tuple(kinds)
         bounds = {k: (float(v[0]), float(v[1])) for k, v in (bounds or {}).items()}
-        for name in ("beta1", "beta2"):
+        for name in [n for n in names if kinds[n] == "inverse"]:
             if beta_abs_min > 0 and abs(init[name]) < beta_abs_min:
                 raise ParameterError(
                     f"{name} = {init[name]:g} is not allowed with beta_abs_min = "
                     f"{beta_abs_min:g}: |{name}| must be >= it"
                 )
         for name in list(freeze) + list(bounds):
-            if name not in GAIN_NAMES:
+            if name not in names:
                 raise ParameterError(
-                    f"unknown gain {name!r}: allowed are {', '.join(GAIN_NAMES)}"
+                    f"unknown gain {name!r}: allowed are {', '.join(names)}"
                 )
         for name, (lo, hi) in bounds.items():
             v = init[name]
@@ -99,7 +103,7 @@ class GainSpace:
                     f"bound {name} = [{lo:g}, {hi:g}] is not allowed: it excludes the "
                     f"initial value {name} = {v:g}"
                 )
-            kind = KIND[name]
+            kind = kinds[name]
             if kind == "inverse" and lo < 0 < hi:
                 raise ParameterError(
                     f"bound {name} = [{lo:g}, {hi:g}] is not allowed: a beta bound "
@@ -114,20 +118,20 @@ class GainSpace:
                     f"bound {name} = [{lo:g}, {hi:g}]: must lie in (1/2, 1]"
                 )
         frozen_names = set(freeze) | {
-            n for n in GAIN_NAMES if n == "alpha" and init["alpha"] >= 1.0
+            n for n in names if kinds[n] == "alpha" and init[n] >= 1.0
         }
-        trainable = tuple(n for n in GAIN_NAMES if n not in frozen_names)
-        frozen = {n: float(init[n]) for n in GAIN_NAMES if n in frozen_names}
-        return cls(trainable, frozen, bounds, float(beta_abs_min))
+        trainable = tuple(n for n in names if n not in frozen_names)
+        frozen = {n: float(init[n]) for n in names if n in frozen_names}
+        return cls(trainable, frozen, bounds, float(beta_abs_min), kinds, make)
 
     def _interval(self, name):
         """Bounds in the transformed coordinate, or None."""
         if name not in self.bounds:
-            if KIND[name] == "inverse" and self.beta_abs_min > 0:
+            if self.kinds[name] == "inverse" and self.beta_abs_min > 0:
                 r = math.asinh(1.0 / self.beta_abs_min)
                 return (-r, r)
             return None
-        kind = KIND[name]
+        kind = self.kinds[name]
         a, b = (_fwd(kind, x) for x in self.bounds[name])
         return (min(a, b), max(a, b))
 
@@ -135,7 +139,7 @@ class GainSpace:
         """Raw (unconstrained) parameters of the trainable gains."""
         raw = {}
         for name in self.trainable:
-            kind = KIND[name]
+            kind = self.kinds[name]
             c = _fwd(kind, float(values[name]))
             iv = self._interval(name)
             if iv is not None:
@@ -152,11 +156,12 @@ class GainSpace:
             raw[name] = jnp.asarray(r, dtype=float)
         return raw
 
-    def to_gains(self, raw: dict[str, jax.Array]) -> Gains:
-        """Legal `Gains` from raw parameters (jittable, differentiable)."""
+    def to_gains(self, raw: dict[str, jax.Array]):
+        """The legal parameter set (`Gains` for the paper's law) from raw parameters
+        (jittable, differentiable)."""
         vals = {}
         for name in self.trainable:
-            kind, r = KIND[name], raw[name]
+            kind, r = self.kinds[name], raw[name]
             iv = self._interval(name)
             if iv is not None:
                 c = iv[0] + (iv[1] - iv[0]) * jax.nn.sigmoid(r)
@@ -168,9 +173,9 @@ class GainSpace:
                 c = r
             vals[name] = _inv(kind, c)
         vals.update(self.frozen)
-        return Gains(**vals)
+        return self.make(**vals)
 
 
-def gains_to_dict(g: Gains) -> dict[str, float]:
-    """The nine gains as plain floats (the gains.json layout)."""
-    return {n: float(getattr(g, n)) for n in GAIN_NAMES}
+def gains_to_dict(g, names: tuple[str, ...] = GAIN_NAMES) -> dict[str, float]:
+    """A parameter set's values as plain floats (the gains.json layout)."""
+    return {n: float(getattr(g, n)) for n in names}

@@ -30,21 +30,28 @@ def make_population_score(setup, unstable_cost: float = 20.0):
     """(list of Gains, batched Fault) -> array of scores (s), one per candidate."""
     s = setup
 
-    def one(gains, f):
-        tr = sj.simulate(gains, f, s.plant, adaptation=s.adaptation, t_end=s.val_t_end)
+    from .train import with_damping
+
+    def one(gains, f, d):
+        tr = sj.simulate(
+            s.controller_of(gains), f, with_damping(s.plant, d), t_end=s.val_t_end
+        )
         m = metrics(tr, delta_band=s.weights.delta_band, Vt_band=s.weights.Vt_band)
         return jnp.where(m.stable, m.settling_delta, unstable_cost), m.stable
 
     batched = eqx.filter_jit(jax.vmap(one))
 
-    def score(candidates: list, faults: sj.Fault):
+    def score(candidates: list, scenarios):
+        faults, damping = scenarios
         p = len(candidates)
         b = jax.tree_util.tree_leaves(faults)[0].shape[0]
         gains = jax.tree_util.tree_map(
             lambda *xs: jnp.repeat(jnp.stack(xs), b, axis=0), *candidates
         )
-        tiled = jax.tree_util.tree_map(lambda a: jnp.tile(a, p), faults)
-        cost, stable = device_map(lambda _, x: batched(*x), None, (gains, tiled))
+        tiled = jax.tree_util.tree_map(lambda a: jnp.tile(a, p), (faults, damping))
+        cost, stable = device_map(
+            lambda _, x: batched(x[0], *x[1]), None, (gains, tiled)
+        )
         cost = np.asarray(cost).reshape(p, b)
         stable = np.asarray(stable).reshape(p, b)
         return cost.mean(axis=1), stable.mean(axis=1)

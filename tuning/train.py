@@ -17,6 +17,7 @@ import jax.numpy as jnp
 import numpy as np
 
 import smibjax as sj
+from smibjax.controllers import AbstractController, EstimateBox, Synergetic
 from smibjax.losses import LossWeights, aggregate, loss_terms, scenario_loss
 from smibjax.metrics import metrics
 from smibjax.parallel import device_map, shard_batch
@@ -26,7 +27,14 @@ from .params import GainSpace
 
 @dataclasses.dataclass(frozen=True)
 class Setup:
-    """Static description of the tuning problem."""
+    """Static description of the tuning problem.
+
+    `controller`: a registry name (`smibjax.controllers.CONTROLLERS`); for the paper's
+    law `adaptation`, `projection` and `phi_layer` are its options. `train_solver`:
+    "fixed" (Tsit5 on a grid of `train_dt`) or "adaptive" (Tsit5 with `train_rtol`,
+    `train_atol`, step lengths held fixed in the reverse pass); see
+    benchmarks/README.md, "Gradients through the saturated loop".
+    """
 
     space: GainSpace
     plant: sj.Plant
@@ -39,26 +47,89 @@ class Setup:
     cvar_q: float
     val_t_end: float
     train_checkpoints: int | None = None
+    controller: str = "aftsc"
+    projection: EstimateBox | None = None
+    phi_layer: float = 0.0
+    train_solver: str = "fixed"
+    train_rtol: float = 1e-8
+    train_atol: float = 1e-10
+    train_max_steps: int = 20_000
+
+    def controller_of(self, params) -> AbstractController:
+        """The controller with parameter set `params` (`space.to_gains(raw)`)."""
+        if isinstance(params, sj.Gains):
+            return Synergetic(
+                params,
+                oracle=self.adaptation == "oracle",
+                projection=self.projection,
+                phi_layer=self.phi_layer,
+            )
+        return params
 
 
-def train_run(s: Setup, raw, fault: sj.Fault) -> sj.Trajectory:
-    """One differentiated training simulation: fixed Tsit5 grid, soft input limits."""
+def scaled_limits(plant: sj.Plant, scale) -> sj.Plant:
+    """`plant` with its input limits multiplied by `scale` (>= 1; infinite limits
+    stay infinite): the continuation from a nearly unlimited plant to the real one."""
+    return eqx.tree_at(
+        lambda p: (p.uf_min, p.uf_max, p.ur_min, p.ur_max),
+        plant,
+        (
+            plant.uf_min * scale,
+            plant.uf_max * scale,
+            plant.ur_min * scale,
+            plant.ur_max * scale,
+        ),
+    )
+
+
+def with_damping(plant: sj.Plant, D) -> sj.Plant:
+    """`plant` with its true damping D (pu) replaced (a scenario's draw)."""
+    return eqx.tree_at(lambda p: p.D, plant, D)
+
+
+def draw_scenarios(key, n: int, dist, plant: sj.Plant):
+    """`n` scenarios from `key`: a batched `Fault` (drawn exactly as
+    `sample_faults(key, n, dist.faults)`) and the true damping D of each (uniform in
+    `dist.D` from an independent key, or the plant's D where not drawn)."""
+    from smibjax.scenarios import sample_faults
+
+    faults = sample_faults(key, n, dist.faults)
+    if dist.D is None:
+        d = jnp.full((n,), plant.D, dtype=float)
+    else:
+        lo, hi = dist.D
+        d = jax.random.uniform(
+            jax.random.fold_in(key, 0xD), (n,), minval=lo, maxval=hi, dtype=float
+        )
+    return faults, d
+
+
+def train_run(s: Setup, raw, fault: sj.Fault, D=None, scale=1.0) -> sj.Trajectory:
+    """One differentiated training simulation: the training solver, soft input limits
+    scaled by `scale`, the scenario's true damping `D` (None: the plant's)."""
+    plant = s.plant if D is None else with_damping(s.plant, D)
+    plant = scaled_limits(plant, scale)
+    if s.train_solver == "adaptive":
+        options = dict(
+            rtol=s.train_rtol, atol=s.train_atol, max_steps=s.train_max_steps
+        )
+    else:
+        options = dict(solver="fixed", dt=s.train_dt)
     return sj.simulate(
-        s.space.to_gains(raw),
+        s.controller_of(s.space.to_gains(raw)),
         fault,
-        s.plant,
-        adaptation=s.adaptation,
+        plant,
         t_end=s.train_t_end,
-        solver="fixed",
-        dt=s.train_dt,
         input_smoothing=s.input_smoothing,
         checkpoints=s.train_checkpoints,
+        **options,
     )
 
 
 def make_train_step(setup: Setup):
-    """(raw, faults) -> (loss, per-scenario losses, terms, stable, grad wrt raw,
-    number of scenarios dropped for a non-finite gradient).
+    """(raw, (faults, D), scale) -> (loss, per-scenario losses, terms, stable, grad
+    wrt raw, number of scenarios dropped for a non-finite gradient); `scale`
+    multiplies the input limits (continuation, 1: the real plant).
 
     Each device computes per-scenario losses and their gradients for its slice of the
     batch (a vmapped gradient costs one batched reverse pass); the batch aggregate's
@@ -66,15 +137,14 @@ def make_train_step(setup: Setup):
     """
     s = setup
 
-    def one(raw, f):
-        tr = train_run(s, raw, f)
+    def one(raw, scale, f, d):
+        tr = train_run(s, raw, f, d, scale)
         return scenario_loss(tr, s.weights), (loss_terms(tr, s.weights), tr.stable)
 
     # One program over all devices (compiled once; device_map would compile one per
     # device, side by side: the first step took 15.5 s instead of ~10 s).
-    per_scenario = shard_batch(
-        jax.vmap(jax.value_and_grad(one, has_aux=True), in_axes=(None, 0))
-    )
+    vg = jax.vmap(jax.value_and_grad(one, has_aux=True), in_axes=(None, None, 0, 0))
+    per_scenario = shard_batch(lambda rep, bat: vg(rep[0], rep[1], *bat))
 
     def agg(per):
         return aggregate(per, s.tail_weight, s.cvar_q)
@@ -95,8 +165,9 @@ def make_train_step(setup: Setup):
         )
         return loss, grad, jnp.sum(~finite)
 
-    def step(raw, faults):
-        (per, (terms, stable)), grads = per_scenario(raw, faults)
+    def step(raw, scenarios, scale=1.0):
+        rep = (raw, jnp.asarray(scale, dtype=float))
+        (per, (terms, stable)), grads = per_scenario(rep, scenarios)
         loss, grad, dropped = reduce(per, grads)
         return loss, per, terms, stable, grad, int(dropped)
 
@@ -104,35 +175,44 @@ def make_train_step(setup: Setup):
 
 
 def make_loss(setup: Setup):
-    """(raw, faults) -> batch loss, forward only (for gradient-free optimizers)."""
+    """(raw, (faults, D)) -> batch loss, forward only (for gradient-free
+    optimizers)."""
     s = setup
 
-    def one(raw, f):
-        tr = train_run(s, raw, f)
+    def one(raw, sc):
+        tr = train_run(s, raw, *sc)
         return scenario_loss(tr, s.weights)
 
     per_scenario = eqx.filter_jit(jax.vmap(one, in_axes=(None, 0)))
-    return lambda raw, faults: aggregate(
-        device_map(per_scenario, raw, faults), s.tail_weight, s.cvar_q
+    return lambda raw, scenarios: aggregate(
+        device_map(per_scenario, raw, scenarios), s.tail_weight, s.cvar_q
     )
 
 
 def make_validate(setup: Setup):
-    """(gains, faults) -> exact `Metrics` per scenario (accurate adaptive solver)."""
+    """(parameters, (faults, D)) -> exact `Metrics` per scenario (the accurate
+    adaptive solver, hard limits, the scenario's true damping D)."""
     s = setup
 
-    def one(gains, f):
-        tr = sj.simulate(gains, f, s.plant, adaptation=s.adaptation, t_end=s.val_t_end)
+    def one(params, sc):
+        f, d = sc
+        tr = sj.simulate(
+            s.controller_of(params), f, with_damping(s.plant, d), t_end=s.val_t_end
+        )
         return metrics(tr, delta_band=s.weights.delta_band, Vt_band=s.weights.Vt_band)
 
     batched = eqx.filter_jit(jax.vmap(one, in_axes=(None, 0)))
-    return lambda gains, faults: device_map(batched, gains, faults)
+    return lambda params, scenarios: device_map(batched, params, scenarios)
 
 
 def summarize(m) -> dict[str, float]:
     """Exact validation summary: stable fraction; mean and p95 settling of the stable
-    scenarios (s); mean overshoot (rad) and effort of all."""
+    scenarios (s); mean overshoot (rad) and effort of all; the physics: the largest
+    commanded inputs (pu, before limits), the mean fraction of time on a limit and
+    mean total variation (pu) of each applied input, the ranges of Vt, B and E' (pu)
+    over the whole set."""
     stable = np.asarray(m.stable)
+    a = {k: np.asarray(v) for k, v in m._asdict().items()}
     ts = np.asarray(m.settling_delta)[stable]
     tv = np.asarray(m.settling_Vt)[stable]
     nan = float("nan")
@@ -145,7 +225,29 @@ def summarize(m) -> dict[str, float]:
         "effort_mean": float(
             np.mean(np.asarray(m.effort_uf) + np.asarray(m.effort_ur))
         ),
+        "peak_uf_cmd_max": float(a["peak_uf_cmd"].max()),
+        "peak_ur_cmd_max": float(a["peak_ur_cmd"].max()),
+        "limit_time_uf_mean": float(a["limit_time_uf"].mean()),
+        "limit_time_ur_mean": float(a["limit_time_ur"].mean()),
+        "tv_uf_mean": float(a["tv_uf"].mean()),
+        "tv_ur_mean": float(a["tv_ur"].mean()),
+        "Vt_min": float(a["Vt_min"].min()),
+        "Vt_max": float(a["Vt_max"].max()),
+        "B_min": float(a["B_min"].min()),
+        "B_max": float(a["B_max"].max()),
+        "E_min": float(a["E_min"].min()),
+        "E_max": float(a["E_max"].max()),
     }
 
 
-__all__ = ["Setup", "make_train_step", "make_loss", "make_validate", "summarize"]
+__all__ = [
+    "Setup",
+    "train_run",
+    "draw_scenarios",
+    "scaled_limits",
+    "with_damping",
+    "make_train_step",
+    "make_loss",
+    "make_validate",
+    "summarize",
+]

@@ -30,6 +30,7 @@ __all__ = [
     "drift_and_gain",
     "drift_and_gain_closed_form",
     "ControlOutput",
+    "evolution",
     "control_law",
     "adaptation_rate",
 ]
@@ -175,12 +176,25 @@ class ControlOutput(NamedTuple):
     phi: Float[Array, 2]  # macro-variables (phi1, phi2), eq. (23)
 
 
+def evolution(phi: Array, T: Array, a: Array | float, layer: float = 0.0) -> Array:
+    """The evolution law's rate phi_dot = spow(-phi/T, alpha) (MODEL.md section 2), or
+    with `layer` = eps > 0 (same units as phi) its boundary-layer ("practical
+    finite-time") form -phi (phi^2 + eps^2)^((alpha - 1)/2) / T^alpha: equal to the
+    exact law to a relative 1 - (1 + eps^2/phi^2)^((alpha - 1)/2) (< 1e-3 for
+    |phi| > 12 eps at alpha = 5/7), linear with the finite slope
+    eps^(alpha - 1)/T^alpha for |phi| << eps, and smooth. alpha = 1 is unaffected."""
+    if layer == 0 or (isinstance(a, (int, float)) and a == 1):
+        return spow(-phi / T, a)
+    return -phi * jnp.exp(0.5 * (a - 1) * jnp.log(phi * phi + layer * layer)) / T**a
+
+
 def control_law(
     z: Float[Array, 4],
     th_hat: Float[Array, 2],
     gains: Gains,
     plant: Plant,
     op: OperatingPoint,
+    layer: float = 0.0,
 ) -> ControlOutput:
     """The synergetic control law, eq. (21) (eq. (36) for alpha = 1):
 
@@ -190,7 +204,8 @@ def control_law(
     with xdot2_hat = (th2 + th1 x2 - x3 - x4)/M, errors e = x - (delta_e, 0, Pm_ref, 0)
     and macro-variables phi1 = e1 + e2 + b1 e3, phi2 = e1 + e2 + b2 e4. With weighted
     macro-variables (MODEL.md section 2) phi_i = c_i e1 + e2 + b_i e_(i+2) and the
-    x2 of each law becomes c_i x2 (c1 = c2 = 1: the paper, the default).
+    x2 of each law becomes c_i x2 (c1 = c2 = 1: the paper, the default). `layer` > 0:
+    the boundary-layer form of the evolution law (see `evolution`; 0: exact).
     """
     x = paper_coordinates(z, plant)
     f, g = drift_and_gain(z, plant)
@@ -204,11 +219,13 @@ def control_law(
     phi2 = c2 * e1 + e2 + b2 * e4
     xdot2_hat = (th_hat[1] + th_hat[0] * x[1] - x[2] - x[3]) / plant.M
     # (c x2 + xdot2_hat) grouped as the paper's common term x2 + xdot2_hat was
-    v1 = -(b1 * f[0] + (c1 * x[1] + xdot2_hat) - spow(-phi1 / gains.T1, a)) / (
-        b1 * g[0, 0]
-    )
+    v1 = -(
+        b1 * f[0] + (c1 * x[1] + xdot2_hat) - evolution(phi1, gains.T1, a, layer)
+    ) / (b1 * g[0, 0])
     v2 = -(
-        b2 * (f[1] + g[1, 0] * v1) + (c2 * x[1] + xdot2_hat) - spow(-phi2 / gains.T2, a)
+        b2 * (f[1] + g[1, 0] * v1)
+        + (c2 * x[1] + xdot2_hat)
+        - evolution(phi2, gains.T2, a, layer)
     ) / (b2 * g[1, 1])
     return ControlOutput(
         u_f=plant.T0 * v1, u_r=plant.Tr * v2, x=x, phi=jnp.stack([phi1, phi2])

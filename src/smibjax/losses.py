@@ -21,7 +21,9 @@ __all__ = [
     "divergence",
     "margin",
     "instability",
+    "chatter",
     "LossWeights",
+    "TERM_NAMES",
     "loss_terms",
     "scenario_loss",
     "cvar",
@@ -99,6 +101,19 @@ def margin(traj: Trajectory, E_floor: float = 0.3, B_ceiling: float = 4.0) -> Sc
     return jnp.mean(jnp.log1p(e) + jnp.log1p(b))
 
 
+def chatter(
+    traj: Trajectory, uf_scale: float = 10.0, ur_scale: float = 2.0
+) -> Scalar:
+    """Total variation per second of the applied inputs, each over a scale (pu: by
+    default the widths of the realistic limits, 10 and 2), as a smooth sum:
+    sum_i sqrt(du_i^2 + eps^2). One full swing between both limits per second costs
+    2; a settled, smooth input almost 0. 0 for a run that lost synchronism (as
+    `effort_rate`)."""
+    tv = jnp.sum(_smooth_abs(jnp.diff(traj.u_f), 1e-4)) / uf_scale
+    tv = tv + jnp.sum(_smooth_abs(jnp.diff(traj.u_r), 1e-4)) / ur_scale
+    return jnp.where(traj.lost_sync, 0.0, tv / traj.t[-1])
+
+
 def instability(traj: Trajectory) -> Scalar:
     """1 if the run lost synchronism, else 0. A value, not a gradient: it ranks broken
     runs last in the batch aggregate and in model selection, while `margin` and
@@ -116,12 +131,26 @@ class LossWeights(eqx.Module):
     divergence: float = eqx.field(static=True, default=1.0)
     margin: float = eqx.field(static=True, default=1.0)
     instability: float = eqx.field(static=True, default=5.0)
+    chatter: float = eqx.field(static=True, default=0.0)
     delta_band: float = eqx.field(static=True, default=0.01)
     Vt_band: float = eqx.field(static=True, default=0.01)
 
 
+TERM_NAMES = (
+    "settling_delta",
+    "settling_Vt",
+    "overshoot",
+    "effort",
+    "divergence",
+    "margin",
+    "instability",
+    "chatter",
+)
+
+
 def loss_terms(traj: Trajectory, w: LossWeights) -> dict[str, Scalar]:
-    """The unweighted terms of one scenario (s, s, rad, -, -, -)."""
+    """The unweighted terms of one scenario (s, s, rad, -, -, -, -, 1/s), named as in
+    `TERM_NAMES` and `LossWeights`."""
     return {
         "settling_delta": soft_settling_time(
             traj.t,
@@ -142,13 +171,14 @@ def loss_terms(traj: Trajectory, w: LossWeights) -> dict[str, Scalar]:
         "divergence": divergence(traj),
         "margin": margin(traj),
         "instability": instability(traj),
+        "chatter": chatter(traj),
     }
 
 
 def scenario_loss(traj: Trajectory, w: LossWeights) -> Scalar:
     """Weighted sum of `loss_terms`."""
     terms = loss_terms(traj, w)
-    return sum(getattr(w, k) * v for k, v in terms.items())
+    return sum(getattr(w, k) * v for k, v in terms.items() if getattr(w, k) != 0)
 
 
 def cvar(x: Float[Array, " b"], q: float) -> Scalar:

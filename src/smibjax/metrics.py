@@ -15,7 +15,15 @@ from jaxtyping import Array, Bool, Float
 
 from .simulate import DEFAULT_DELTA_BAND, Trajectory, is_stable
 
-__all__ = ["Metrics", "settling_time", "overshoot", "metrics", "DEFAULT_BANDS"]
+__all__ = [
+    "Metrics",
+    "settling_time",
+    "overshoot",
+    "on_limit",
+    "total_variation",
+    "metrics",
+    "DEFAULT_BANDS",
+]
 
 DEFAULT_BANDS = {"delta": DEFAULT_DELTA_BAND, "Vt": 0.01, "omega": 0.01}
 
@@ -61,9 +69,33 @@ class Metrics(NamedTuple):
     overshoot: Float[Array, ""]  # rad
     effort_uf: Float[Array, ""]  # integral of u_f^2 over [0, t_end] (pu^2 s)
     effort_ur: Float[Array, ""]  # integral of u_r^2 over [0, t_end] (pu^2 s)
-    peak_uf: Float[Array, ""]  # max |u_f| on the samples (pu)
-    peak_ur: Float[Array, ""]  # max |u_r| on the samples (pu)
+    peak_uf: Float[Array, ""]  # max |u_f| reaching the plant, on the samples (pu)
+    peak_ur: Float[Array, ""]  # max |u_r| reaching the plant, on the samples (pu)
     peak_B: Float[Array, ""]  # max |B| on the samples (pu)
+    # The physics of the run (on the samples up to the end of the run):
+    peak_uf_cmd: Float[Array, ""]  # max |u_f| commanded, before the limits (pu)
+    peak_ur_cmd: Float[Array, ""]  # max |u_r| commanded, before the limits (pu)
+    limit_time_uf: Float[Array, ""]  # fraction of the run with u_f on a limit
+    limit_time_ur: Float[Array, ""]  # fraction of the run with u_r on a limit
+    tv_uf: Float[Array, ""]  # total variation of the applied u_f (pu): chatter
+    tv_ur: Float[Array, ""]  # total variation of the applied u_r (pu)
+    Vt_min: Float[Array, ""]  # range of the SVC-bus voltage (pu)
+    Vt_max: Float[Array, ""]
+    B_min: Float[Array, ""]  # range of the SVC susceptance (pu)
+    B_max: Float[Array, ""]
+    E_min: Float[Array, ""]  # range of E' (pu)
+    E_max: Float[Array, ""]
+
+
+def on_limit(cmd: Float[Array, " n"], applied: Float[Array, " n"]) -> Float[Array, " n"]:
+    """1 where the commanded input is cut by a limit (|cmd - applied| > 1e-9 pu)."""
+    return (jnp.abs(cmd - applied) > 1e-9).astype(applied.dtype)
+
+
+def total_variation(u: Float[Array, " n"]) -> Float[Array, ""]:
+    """sum |u[i+1] - u[i]| over the samples (pu): 2 (hi - lo) per full swing between
+    two limits, so chatter shows as a large value."""
+    return jnp.sum(jnp.abs(jnp.diff(u)))
 
 
 def metrics(
@@ -90,4 +122,16 @@ def metrics(
         peak_uf=jnp.max(jnp.abs(traj.u_f)),
         peak_ur=jnp.max(jnp.abs(traj.u_r)),
         peak_B=jnp.max(jnp.abs(traj.B)),
+        peak_uf_cmd=jnp.max(jnp.abs(traj.u_f_cmd)),
+        peak_ur_cmd=jnp.max(jnp.abs(traj.u_r_cmd)),
+        limit_time_uf=jnp.mean(on_limit(traj.u_f_cmd, traj.u_f)),
+        limit_time_ur=jnp.mean(on_limit(traj.u_r_cmd, traj.u_r)),
+        tv_uf=total_variation(traj.u_f),
+        tv_ur=total_variation(traj.u_r),
+        Vt_min=jnp.min(traj.Vt),
+        Vt_max=jnp.max(traj.Vt),
+        B_min=jnp.min(traj.B),
+        B_max=jnp.max(traj.B),
+        E_min=jnp.min(traj.E),
+        E_max=jnp.max(traj.E),
     )

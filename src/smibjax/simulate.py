@@ -186,7 +186,10 @@ def _resolve_controller(gains, adaptation) -> AbstractController:
     if isinstance(controller, Synergetic):
         oracle = controller.oracle if adaptation is None else adaptation == "oracle"
         controller = Synergetic(
-            static_alpha(controller.gains), oracle, controller.projection
+            static_alpha(controller.gains),
+            oracle,
+            controller.projection,
+            controller.phi_layer,
         )
     return controller
 

@@ -11,6 +11,8 @@ two options (both off by default, MODEL.md section 2):
 
 from __future__ import annotations
 
+import math
+
 import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
@@ -98,12 +100,23 @@ class Synergetic(AbstractController):
 
     `oracle`: the paper's update law, whose k-terms read the true theta (True), or the
     realizable certainty-equivalence law without them (False). `projection`: an
-    `EstimateBox` (None: no projection, the paper).
+    `EstimateBox` (None: no projection, the paper). `phi_layer` (units of phi): the
+    boundary-layer width of the evolution law (`smibjax.controller.evolution`; 0, the
+    default: the exact finite-time law).
     """
 
     gains: Gains
     oracle: bool = eqx.field(static=True, default=True)
     projection: EstimateBox | None = None
+    phi_layer: float = eqx.field(static=True, default=0.0)
+
+    def __check_init__(self):
+        v = self.phi_layer
+        if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
+            raise ParameterError(
+                f"phi_layer = {v!r} is not allowed: must be a finite number >= 0 "
+                "(0: the exact finite-time law)"
+            )
 
     n_internal = 2
     has_estimates = True
@@ -129,7 +142,7 @@ class Synergetic(AbstractController):
         return th0
 
     def __call__(self, t, z, s, stage, plant, op):
-        out = control_law(z, s, self.gains, plant, op)
+        out = control_law(z, s, self.gains, plant, op, self.phi_layer)
         rate = adaptation_rate(out, s, self.gains, plant, self.oracle)
         if self.projection is not None:
             rate = project(s, rate, self.projection)
