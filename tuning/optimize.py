@@ -443,10 +443,11 @@ def finish(cfg: dict, out: Path, state: dict) -> None:
     """gains.json, history.csv, report.md and plots."""
     from .report import write_report
 
+    names = tuple(state["space"].kinds)
     gains = state["space"].to_gains(state["best"]["raw"])
-    write_json(out / "gains.json", gains_to_dict(gains))
+    write_json(out / "gains.json", gains_to_dict(gains, names))
     last = state["space"].to_gains(state["raw"])
-    write_json(out / "gains_last.json", gains_to_dict(last))
+    write_json(out / "gains_last.json", gains_to_dict(last, names))
     write_history(out, state["history"])
     write_report(cfg, out, state)
 

@@ -15,7 +15,8 @@ import numpy as np  # noqa: E402
 import smibjax as sj  # noqa: E402
 from smibjax.io import atomic_write, write_text  # noqa: E402
 
-from .params import gains_to_dict  # noqa: E402
+from .params import gains_to_dict
+from .train import with_damping  # noqa: E402
 
 
 def _save(fig, path):
@@ -119,6 +120,72 @@ def _search_lines(cfg: dict, state: dict) -> list[str]:
     ]
 
 
+def _d_range(cfg) -> str:
+    d = cfg["scenarios"].get("D") or []
+    return f"uniform in [{d[0]:g}, {d[1]:g}]" if d else "nominal"
+
+
+def _train_solver(setup) -> str:
+    if setup.train_solver == "adaptive":
+        return (
+            f"Tsit5 with adaptive steps (rtol {setup.train_rtol:g}, atol "
+            f"{setup.train_atol:g}), step lengths held fixed in the reverse pass"
+        )
+    return (
+        f"Tsit5 on a fixed grid dt = {setup.train_dt:g} s (stopping exactly at "
+        "every switch time)"
+    )
+
+
+def _paper_fault_lines(tr, setup) -> list[str]:
+    """The tuned controller on the paper's fault: its physics, in one table."""
+    from smibjax.metrics import metrics
+
+    m = metrics(tr)
+    after = np.asarray(tr.t) >= float(tr.t_fault) + 0.2
+    th = np.asarray(tr.theta_hat)[-1]
+    rows = [
+        ("stable", str(bool(m.stable))),
+        ("delta settling from fault inception (s)", _fmt(float(m.settling_delta))),
+        ("overshoot (rad)", _fmt(float(m.overshoot))),
+        (
+            "peak commanded u_f / u_r (pu)",
+            f"{float(m.peak_uf_cmd):.4g} / {float(m.peak_ur_cmd):.4g}",
+        ),
+        (
+            "time on a limit u_f / u_r",
+            f"{float(m.limit_time_uf):.3f} / {float(m.limit_time_ur):.3f}",
+        ),
+        (
+            "total variation u_f / u_r, whole run (pu)",
+            f"{float(m.tv_uf):.4g} / {float(m.tv_ur):.4g}",
+        ),
+        (
+            "total variation u_f after clearing (pu)",
+            f"{float(np.sum(np.abs(np.diff(np.asarray(tr.u_f)[after])))):.4g}",
+        ),
+        (
+            "Vt, B, E' ranges (pu)",
+            f"{float(m.Vt_min):.3f}..{float(m.Vt_max):.3f}, "
+            f"{float(m.B_min):.3f}..{float(m.B_max):.3f}, "
+            f"{float(m.E_min):.3f}..{float(m.E_max):.3f}",
+        ),
+        (
+            "final estimates (th1, th2) vs true (-D, Pm)",
+            f"({th[0]:.4f}, {th[1]:.4f}) vs ({-float(setup.plant.D):g}, "
+            f"{float(setup.plant.Pm):g})",
+        ),
+    ]
+    return [
+        "## The tuned controller on the paper's fault",
+        "",
+        "| quantity | value |",
+        "|---|---|",
+        *[f"| {a} | {b} |" for a, b in rows],
+        "",
+    ]
+
+
 def write_report(cfg: dict, out: Path, state: dict) -> None:
     space, setup = state["space"], state["setup"]
     raw0 = space.to_raw(state["init"])
@@ -131,8 +198,13 @@ def write_report(cfg: dict, out: Path, state: dict) -> None:
     # representative scenarios: the paper's fault, the median and worst tuned ones
     ts = np.where(np.asarray(m1.stable), np.asarray(m1.settling_delta), np.inf)
     order = np.argsort(ts)
-    picks = {"paper fault (0.5 -> 0.7 s, reclose 2.0 s)": sj.Fault()}
-    vf = state["val_faults"]
+    picks = {
+        "paper fault (0.5 -> 0.7 s, reclose 2.0 s), nominal D": (
+            sj.Fault(),
+            setup.plant.D,
+        )
+    }
+    vf, vd = state["val_faults"]
     for name, i in (
         ("median tuned", order[len(order) // 2]),
         ("worst tuned", order[-1]),
@@ -141,19 +213,24 @@ def write_report(cfg: dict, out: Path, state: dict) -> None:
         picks[
             f"{name} validation scenario: fault {float(f.t_fault):.2f} -> "
             f"{float(f.t_clear):.2f} s, reclose {float(f.t_reclose):.2f} s, "
-            f"lam {float(f.lam):.2f}, Xf {float(f.Xf):.3f}"
-        ] = f
+            f"lam {float(f.lam):.2f}, Xf {float(f.Xf):.3f}, D {float(vd[i]):.3f}"
+        ] = (f, vd[i])
     runs = {
         title: {
             label: sj.simulate(
-                g, f, setup.plant, adaptation=setup.adaptation, t_end=setup.val_t_end
+                setup.controller_of(g),
+                f,
+                with_damping(setup.plant, d),
+                t_end=setup.val_t_end,
             )
             for label, g in (("initial", g0), ("tuned", g1))
         }
-        for title, f in picks.items()
+        for title, (f, d) in picks.items()
     }
+    paper_tuned = runs[next(iter(runs))]["tuned"]
     plot_trajectories(out, runs)
-    d0, d1 = gains_to_dict(g0), gains_to_dict(g1)
+    names = tuple(space.kinds)
+    d0, d1 = gains_to_dict(g0, names), gains_to_dict(g1, names)
     rows = [
         ("stable fraction", "stable_fraction", ""),
         ("mean delta settling (s)", "settling_delta_mean", ""),
@@ -161,13 +238,37 @@ def write_report(cfg: dict, out: Path, state: dict) -> None:
         ("mean Vt settling (s)", "settling_Vt_mean", ""),
         ("mean overshoot (rad)", "overshoot_mean", ""),
         ("mean effort (pu^2 s)", "effort_mean", ""),
+        ("peak commanded u_f, before limits (pu)", "peak_uf_cmd_max", ""),
+        ("peak commanded u_r, before limits (pu)", "peak_ur_cmd_max", ""),
+        ("mean fraction of time u_f on a limit", "limit_time_uf_mean", ""),
+        ("mean fraction of time u_r on a limit", "limit_time_ur_mean", ""),
+        ("mean total variation of u_f (pu, chatter)", "tv_uf_mean", ""),
+        ("mean total variation of u_r (pu, chatter)", "tv_ur_mean", ""),
+        ("Vt range (pu)", "Vt_min", "Vt_max"),
+        ("B range (pu)", "B_min", "B_max"),
+        ("E' range (pu)", "E_min", "E_max"),
     ]
+
+    def cell(v, k, k2):
+        return _fmt(v[k]) if not k2 else f"{_fmt(v[k])} .. {_fmt(v[k2])}"
+
     n_val = int(cfg["validation"]["n"])
     md = [
         "# Tuning report",
         "",
         f"Controller {cfg['controller'].upper()}, {cfg['preset']} plant, "
-        f"{cfg['adaptation']} adaptation; {state['step']} steps of batch "
+        f"{cfg['adaptation']} adaptation"
+        + (
+            f", estimates projected onto {cfg['options']['projection']}"
+            if setup.projection is not None
+            else ""
+        )
+        + (
+            f", evolution-law boundary layer {setup.phi_layer:g}"
+            if setup.phi_layer
+            else ""
+        )
+        + f"; true damping D {_d_range(cfg)}; {state['step']} steps of batch "
         f"{cfg['batch']} (seed {cfg['seed']}), start `{cfg['init']}`."
         + (
             f" Wall time {state['wall_seconds']:.0f} s."
@@ -188,7 +289,15 @@ def write_report(cfg: dict, out: Path, state: dict) -> None:
         "",
         "| metric | initial | tuned |",
         "|---|---|---|",
-        *[f"| {name} | {_fmt(v0s[k])} | {_fmt(v1s[k])} |" for name, k, _ in rows],
+        *[
+            f"| {name} | {cell(v0s, k, k2)} | {cell(v1s, k, k2)} |"
+            for name, k, k2 in rows
+        ],
+        "",
+        "Peaks and ranges: the largest over the set; fractions and total variations: "
+        "means over the set (10 ms samples of the whole run).",
+        "",
+        *_paper_fault_lines(paper_tuned, setup),
         "",
         "## Gains",
         "",
@@ -201,11 +310,17 @@ def write_report(cfg: dict, out: Path, state: dict) -> None:
         "",
         "## Solvers",
         "",
-        f"- Training (differentiated): Tsit5 on a fixed grid dt = {setup.train_dt:g} s "
-        f"(stopping exactly at every switch time), horizon {setup.train_t_end:g} s, "
-        f"soft input limiter of width {setup.input_smoothing:g} pu, smooth surrogate "
-        "losses; gradients of this path match central finite differences "
-        "(tests/test_gradients.py, tests/test_losses.py).",
+        f"- Training (differentiated): {_train_solver(setup)}, horizon "
+        f"{setup.train_t_end:g} s, soft input limiter of width "
+        f"{setup.input_smoothing:g} pu"
+        + (
+            f" (limits x {cfg['continuation']['start']:g} at step 0, falling "
+            f"geometrically to x1 at step {cfg['continuation']['steps']})"
+            if int(cfg["continuation"]["steps"]) > 0
+            else ""
+        )
+        + ", smooth surrogate losses; gradients of this path match central finite "
+        "differences (tests/test_gradients.py, tests/test_losses.py).",
         f"- Validation: Tsit5 with adaptive steps (rtol 1e-6, atol 1e-8), horizon "
         f"{setup.val_t_end:g} s, hard input limits, exact metrics (MODEL.md section 4).",
         "",

@@ -42,7 +42,8 @@ N_STATE = 8  # delta, domega, E, B, th1, th2, J_f, J_r (the paper's controller)
 N_DYNAMIC = 6  # the first six enter the error control; the effort integrals do not
 
 # Loss of synchronism is declared (and the run ends as unstable) when delta comes within
-# DELTA_MARGIN rad of 0 or pi, E' falls below E_MIN, or a transfer reactance falls below
+# DELTA_MARGIN rad of the ends of the controller's angle range (0 and pi for the paper's
+# law, -pi and pi otherwise), E' falls below E_MIN, or a transfer reactance falls below
 # X_MIN: the control law has 1/sin(delta) and 1/Pe singularities there (MODEL.md
 # section 3) and no trajectory crosses them, so the spec's "delta leaves (0, pi)" is
 # detected a hair before the singularity instead of after it.
@@ -180,12 +181,13 @@ def healthy(
     fraction of the cost inside the solver's loop.
     """
     delta, E, B = y[0], y[2], y[3]
+    lo, hi = loop.controller.angle_range
     b = loop.b_max
     b_lim = by_stage(t, loop.fault, b[0], b[1], b[2])
     return (
         jnp.isfinite(jnp.sum(y[: loop.n_dynamic]))
-        & (delta > DELTA_MARGIN)
-        & (delta < jnp.pi - DELTA_MARGIN)
+        & (delta > lo + DELTA_MARGIN)
+        & (delta < hi - DELTA_MARGIN)
         & (E > E_MIN)
         & (B < b_lim)
     )

@@ -101,9 +101,7 @@ def margin(traj: Trajectory, E_floor: float = 0.3, B_ceiling: float = 4.0) -> Sc
     return jnp.mean(jnp.log1p(e) + jnp.log1p(b))
 
 
-def chatter(
-    traj: Trajectory, uf_scale: float = 10.0, ur_scale: float = 2.0
-) -> Scalar:
+def chatter(traj: Trajectory, uf_scale: float = 10.0, ur_scale: float = 2.0) -> Scalar:
     """Total variation per second of the applied inputs, each over a scale (pu: by
     default the widths of the realistic limits, 10 and 2), as a smooth sum:
     sum_i sqrt(du_i^2 + eps^2). One full swing between both limits per second costs

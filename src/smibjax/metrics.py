@@ -87,7 +87,9 @@ class Metrics(NamedTuple):
     E_max: Float[Array, ""]
 
 
-def on_limit(cmd: Float[Array, " n"], applied: Float[Array, " n"]) -> Float[Array, " n"]:
+def on_limit(
+    cmd: Float[Array, " n"], applied: Float[Array, " n"]
+) -> Float[Array, " n"]:
     """1 where the commanded input is cut by a limit (|cmd - applied| > 1e-9 pu)."""
     return (jnp.abs(cmd - applied) > 1e-9).astype(applied.dtype)
 

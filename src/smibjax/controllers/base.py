@@ -10,6 +10,7 @@ inputs (u_f, u_r) (before the plant's limits), ds/dt and two diagnostic signals.
 from __future__ import annotations
 
 import abc
+import math
 from typing import ClassVar, NamedTuple
 
 import equinox as eqx
@@ -45,6 +46,10 @@ class AbstractController(eqx.Module):
     n_internal: ClassVar[int]
     has_estimates: ClassVar[bool] = False  # internal[:2] estimates theta = (-D, Pm)
     diagnostic_names: ClassVar[tuple[str, str]] = ("-", "-")
+    # The rotor angles (rad) inside which the run keeps synchronism: a pole slip at
+    # +-pi in general; the paper's law is singular at 0 and pi (MODEL.md section 3)
+    # and narrows it to (0, pi).
+    angle_range: ClassVar[tuple[float, float]] = (-math.pi, math.pi)
 
     @abc.abstractmethod
     def initial_internal(

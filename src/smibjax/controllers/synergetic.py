@@ -120,6 +120,7 @@ class Synergetic(AbstractController):
 
     n_internal = 2
     has_estimates = True
+    angle_range = (0.0, math.pi)  # cot x1 and 1/g31 are singular at 0 and pi
     diagnostic_names = ("phi1", "phi2")
 
     @classmethod
