@@ -22,6 +22,7 @@ __all__ = [
     "margin",
     "instability",
     "chatter",
+    "saturation",
     "LossWeights",
     "TERM_NAMES",
     "loss_terms",
@@ -112,6 +113,22 @@ def chatter(traj: Trajectory, uf_scale: float = 10.0, ur_scale: float = 2.0) -> 
     return jnp.where(traj.lost_sync, 0.0, tv / traj.t[-1])
 
 
+def saturation(
+    traj: Trajectory, uf_scale: float = 1.0, ur_scale: float = 0.2
+) -> Scalar:
+    """Mean over the samples of log(1 + (excess_f/uf_scale)^2) + log(1 +
+    (excess_r/ur_scale)^2), where excess is how far the commanded input lies beyond
+    what reaches the plant (pu; 0 inside the limits). It prices living on the limits,
+    and it is the one term with a gradient there: beyond a limit the applied input,
+    and with it every other term, does not move with the gains. Logarithmic: the
+    paper's gains command 1e4 pu. 0 for a run that lost synchronism (as
+    `effort_rate`)."""
+    ef = (traj.u_f_cmd - traj.u_f) / uf_scale
+    er = (traj.u_r_cmd - traj.u_r) / ur_scale
+    value = jnp.mean(jnp.log1p(ef * ef) + jnp.log1p(er * er))
+    return jnp.where(traj.lost_sync, 0.0, value)
+
+
 def instability(traj: Trajectory) -> Scalar:
     """1 if the run lost synchronism, else 0. A value, not a gradient: it ranks broken
     runs last in the batch aggregate and in model selection, while `margin` and
@@ -130,6 +147,7 @@ class LossWeights(eqx.Module):
     margin: float = eqx.field(static=True, default=1.0)
     instability: float = eqx.field(static=True, default=5.0)
     chatter: float = eqx.field(static=True, default=0.0)
+    saturation: float = eqx.field(static=True, default=0.0)
     delta_band: float = eqx.field(static=True, default=0.01)
     Vt_band: float = eqx.field(static=True, default=0.01)
 
@@ -143,11 +161,12 @@ TERM_NAMES = (
     "margin",
     "instability",
     "chatter",
+    "saturation",
 )
 
 
 def loss_terms(traj: Trajectory, w: LossWeights) -> dict[str, Scalar]:
-    """The unweighted terms of one scenario (s, s, rad, -, -, -, -, 1/s), named as in
+    """The unweighted terms of one scenario (s, s, rad, -, -, -, -, 1/s, -), named as in
     `TERM_NAMES` and `LossWeights`."""
     return {
         "settling_delta": soft_settling_time(
@@ -170,6 +189,7 @@ def loss_terms(traj: Trajectory, w: LossWeights) -> dict[str, Scalar]:
         "margin": margin(traj),
         "instability": instability(traj),
         "chatter": chatter(traj),
+        "saturation": saturation(traj),
     }
 
 
