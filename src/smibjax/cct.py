@@ -304,8 +304,6 @@ def critical_clearing_times(
     sets = result["sets"]
     for key in ("cct", "status", "islands"):
         result[key] = (
-            sets[names[0]][key]
-            if len(names) == 1
-            else {n: sets[n][key] for n in names}
+            sets[names[0]][key] if len(names) == 1 else {n: sets[n][key] for n in names}
         )
     return result

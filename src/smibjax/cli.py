@@ -384,32 +384,55 @@ def _check_cct_args(args) -> None:
         )
     if not args.tol > 0:
         raise CLIError(f"--tol {args.tol:g} is not allowed: must be > 0")
+    if not args.scan_step > 0:
+        raise CLIError(f"--scan-step {args.scan_step:g} is not allowed: must be > 0")
+    if not (math.isfinite(args.t_end) and args.t_end > args.reclose_time):
+        raise CLIError(
+            f"--t-end {args.t_end:g} is not allowed: must be after --reclose-time "
+            f"{args.reclose_time:g} (the fault time plus the clearing window)"
+        )
+
+
+def _cct_cell(res: dict, r: dict, j: int) -> str:
+    """One printed CCT cell: the number, '*' when not monotone, or what it is not."""
+    st = r["status"][j]
+    if st == "exceeds_window":
+        return f"> {res['window']:g} (window)"
+    if st == "unstable_at_min":
+        return "none (unstable)" + ("*" if r["islands"][j] else "")
+    return f"{r['cct'][j]:.4f}" + ("*" if st == "non_monotone" else "")
+
+
+def _islands_text(islands: list) -> str:
+    """Stable islands as '[0.4, 0.45] s, [0.6, 0.6] s'."""
+    return ", ".join(f"[{lo:g}, {hi:g}] s" for lo, hi in islands)
 
 
 def _print_cct(res: dict) -> None:
     locs = res["fault_location"]
+    crit = res.get("criterion", "settled")
     print(
-        f"critical clearing time (s), fault at {res['fault_time']:g} s, reclose "
-        f"{res['reclose_time']:g} s, tol {res['tol']:g} s:"
+        f"critical clearing time (s), criterion {crit}, fault at "
+        f"{res['fault_time']:g} s, reclose {res['reclose_time']:g} s, t_end "
+        f"{res.get('t_end', 10.0):g} s, tol {res['tol']:g} s:"
     )
     print(f"{'location':>10} " + " ".join(f"{n:>16}" for n in res["sets"]))
     for j, lam in enumerate(locs):
-        cells = []
-        for r in res["sets"].values():
-            st = r["status"][j]
-            cells.append(
-                f"> {res['window']:g} (window)"
-                if st == "exceeds_window"
-                else "none (unstable)"
-                if st == "unstable_at_min"
-                else f"{r['cct'][j]:.4f}"
-            )
+        cells = [_cct_cell(res, r, j) for r in res["sets"].values()]
         print(f"{lam:10g} " + " ".join(f"{c:>16}" for c in cells))
     if any("exceeds_window" in r["status"] for r in res["sets"].values()):
         print(
             f"note: '> {res['window']:g}' = still stable when cleared at reclosure: the "
             "CCT lies beyond the window (no number is given)"
         )
+    for name, r in res["sets"].items():
+        for j, lam in enumerate(locs):
+            if r["islands"][j]:
+                print(
+                    f"* non-monotone: {name} at location {lam:g} is stable again for "
+                    f"clearing durations {_islands_text(r['islands'][j])} (scan "
+                    "durations): the CCT is where stability first ends"
+                )
 
 
 def _run_cct(args, sets, plant, op, init) -> dict:
@@ -426,6 +449,8 @@ def _run_cct(args, sets, plant, op, init) -> dict:
         reclose_time=args.reclose_time,
         fault_reactance=getattr(args, "fault_reactance", 0.0),
         tol=args.tol,
+        scan_step=args.scan_step,
+        criterion=getattr(args, "criterion", "settled"),
         adaptation=args.adaptation,
         t_end=args.t_end,
         max_steps=args.max_steps,
@@ -530,6 +555,13 @@ def _add_cct_options(p, with_reactance=True) -> None:
     if with_reactance:
         p.add_argument("--fault-reactance", type=float, default=0.0, help="Xf (pu)")
     p.add_argument("--tol", type=float, default=1e-3, help="bisection tolerance (s)")
+    p.add_argument(
+        "--scan-step",
+        type=float,
+        default=0.05,
+        help="spacing (s) of the scan of clearing durations that precedes the "
+        "bisection and finds non-monotone stability (default 0.05)",
+    )
 
 
 def _cmd_reproduce(args) -> int:
@@ -589,7 +621,9 @@ def _parser() -> argparse.ArgumentParser:
     m.add_argument("--out", metavar="DIR", help="output folder (default: runs/...)")
     m.set_defaults(func=_cmd_montecarlo)
 
-    c = sub.add_parser("cct", help="critical clearing times by vmapped bisection")
+    c = sub.add_parser(
+        "cct", help="critical clearing times: vmapped scan, then bisection"
+    )
     c._sub = "cct"
     _add_common(c)
     c.set_defaults(controller=None)
@@ -599,7 +633,20 @@ def _parser() -> argparse.ArgumentParser:
             a.help = "one or more of aftsc, asc (default aftsc)"
     _add_cct_options(c)
     _add_tolerances(c)
-    c.add_argument("--t-end", type=float, default=10.0, help="horizon (s)")
+    c.add_argument(
+        "--t-end",
+        type=float,
+        default=10.0,
+        help="horizon of every run (s), after --reclose-time (default 10)",
+    )
+    c.add_argument(
+        "--criterion",
+        choices=["settled", "synchronism"],
+        default="settled",
+        help="settled: no loss of synchronism and delta back in its band by t_end "
+        "(default); synchronism: no loss of synchronism up to t_end (the industry "
+        "definition)",
+    )
     c.add_argument("--out", metavar="FILE.json", help="write the CCTs (+ a .png plot)")
     c.set_defaults(func=_cmd_cct)
 

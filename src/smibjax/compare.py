@@ -55,6 +55,11 @@ def _fmt(x, spec=".2f") -> str:
     )
 
 
+def _islands_text(islands) -> str:
+    """Stable islands of clearing durations as '[0.4, 0.45] s'."""
+    return ", ".join(f"[{lo:g}, {hi:g}] s" for lo, hi in islands)
+
+
 def compare_table(summaries: dict[str, dict], cct: dict) -> str:
     """Markdown: one row per gain set (Monte Carlo summary and CCT per location)."""
     locs = cct["fault_location"]
@@ -70,13 +75,16 @@ def compare_table(summaries: dict[str, dict], cct: dict) -> str:
         st, ov = s["settling_time"], s["overshoot"]
         r = cct["sets"][name]
         cells = []
-        for v, status in zip(r["cct"], r["status"], strict=True):
+        for v, status, isl in zip(
+            r["cct"], r["status"], r.get("islands", [[]] * len(locs)), strict=True
+        ):
+            again = f" (stable again {_islands_text(isl)})" if isl else ""
             if status == "exceeds_window":
                 cells.append(f"> {cct['window']:.3g}")
             elif status == "unstable_at_min":
-                cells.append("none")
+                cells.append("none" + again)
             else:
-                cells.append(f"{v:.3f}")
+                cells.append(f"{v:.3f}" + (" non-monotone" + again if isl else ""))
         lines.append(
             f"| {name} | {100 * s['stable_fraction']:.1f} ({100 * lo:.1f}-"
             f"{100 * hi:.1f}) | {_fmt(st.get('mean'))} | {_fmt(st.get('p95'))} | "
@@ -88,7 +96,7 @@ def compare_table(summaries: dict[str, dict], cct: dict) -> str:
 def plot_compare(rows: dict[str, dict], cct: dict, path) -> None:
     """Left: stable fraction per set; middle: settling-time distributions (stable
     scenarios); right: CCT against fault location per set."""
-    from .plotting import _save, plt
+    from .plotting import _save, plot_islands, plt
 
     names = list(rows)
     fig, axes = plt.subplots(1, 3, figsize=(16, 4.5))
@@ -109,10 +117,14 @@ def plot_compare(rows: dict[str, dict], cct: dict, path) -> None:
         c = [np.nan if v is None else v for v in cct["sets"][n]["cct"]]
         st = np.asarray(cct["sets"][n]["status"])
         c = np.where(st == "exceeds_window", cct["window"], np.asarray(c, dtype=float))
-        axes[2].plot(loc, c, "o-", label=n, ms=4)
+        (line,) = axes[2].plot(loc, c, "o-", label=n, ms=4)
+        plot_islands(axes[2], cct, n, line.get_color())
     axes[2].axhline(cct["window"], color="k", ls="--", lw=1, label="window")
     axes[2].set_xlabel("fault location")
-    axes[2].set_ylabel("CCT (s; at the window line: beyond it)")
+    axes[2].set_ylabel(
+        f"CCT (s), {cct.get('criterion', 'settled')}; window line: beyond it; "
+        "bars: stable again"
+    )
     axes[2].legend(fontsize=8)
     for a in axes:
         a.grid(alpha=0.3)
