@@ -26,6 +26,7 @@ import numpy as np  # noqa: E402
 import optax  # noqa: E402
 
 import smibjax as sj  # noqa: E402
+from smibjax import gainsfile  # noqa: E402
 from smibjax.io import atomic_write, read_gains, write_json, write_text  # noqa: E402
 from smibjax.losses import LossWeights  # noqa: E402
 from smibjax.scenarios import FaultDistribution, sample_faults  # noqa: E402
@@ -361,14 +362,32 @@ def run(
     return state
 
 
+def _gains_file(cfg: dict, gains) -> gainsfile.GainsFile:
+    """The gains with what they were tuned for (schema smibjax.gains/1): controller,
+    adaptation mode and plant preset with its input limits (pu)."""
+    plant = sj.Plant.preset(cfg["preset"])
+    limits = {k: float(getattr(plant, k)) for k in ("uf_min", "uf_max")}
+    limits.update({k: float(getattr(plant, k)) for k in ("ur_min", "ur_max")})
+    values = gains_to_dict(gains)
+    # alpha = 1 is the ASC law whatever the start (a logit can round up to 1.0)
+    controller = "asc" if values["alpha"] == 1.0 else cfg["controller"]
+    return gainsfile.GainsFile(
+        controller=controller,
+        adaptation=cfg["adaptation"],
+        plant={"preset": cfg["preset"], **limits},
+        options={},
+        gains=values,
+    )
+
+
 def finish(cfg: dict, out: Path, state: dict) -> None:
     """gains.json, history.csv, report.md and plots."""
     from .report import write_report
 
     gains = state["space"].to_gains(state["best"]["raw"])
-    write_json(out / "gains.json", gains_to_dict(gains))
+    gainsfile.write(out / "gains.json", _gains_file(cfg, gains))
     last = state["space"].to_gains(state["raw"])
-    write_json(out / "gains_last.json", gains_to_dict(last))
+    gainsfile.write(out / "gains_last.json", _gains_file(cfg, last))
     write_history(out, state["history"])
     write_report(cfg, out, state)
 

@@ -32,16 +32,23 @@ def _add_common(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--controller",
         choices=["aftsc", "asc"],
-        default="aftsc",
-        help="AFTSC (alpha = 5/7) or ASC (alpha = 1); default aftsc",
+        default=None,
+        help="AFTSC (alpha = 5/7) or ASC (alpha = 1); default: the gains file's, "
+        "else aftsc",
     )
     p.add_argument(
         "--preset",
         choices=["paper", "realistic"],
-        default="paper",
-        help="plant input limits: paper (none) or realistic; default paper",
+        default=None,
+        help="plant input limits: paper (none) or realistic; default: the gains "
+        "file's, else paper",
     )
-    p.add_argument("--gains", metavar="FILE", help="flat JSON or TOML table of gains")
+    p.add_argument(
+        "--gains",
+        metavar="FILE",
+        help="gains file (JSON/TOML): with context (schema smibjax.gains/1, as the "
+        "tuner writes) or a flat table of gains",
+    )
     p.add_argument(
         "--set",
         metavar="NAME=VALUE",
@@ -52,8 +59,9 @@ def _add_common(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--adaptation",
         choices=["oracle", "realizable"],
-        default="oracle",
-        help="oracle (paper, uses the true theta) or realizable (k1=k2=0)",
+        default=None,
+        help="oracle (paper, uses the true theta) or realizable (k1=k2=0); default: "
+        "the gains file's, else oracle",
     )
     _add_max_steps(p)
 
@@ -112,11 +120,19 @@ def _parse_sets(items: list[str]) -> dict[str, float]:
 
 
 def build_parameters(
-    controller="aftsc", preset="paper", gains_file=None, sets=None, complete=False
+    controller="aftsc",
+    preset="paper",
+    gains_file=None,
+    sets=None,
+    complete=False,
+    *,
+    gain_values=None,
+    plant_values=None,
 ):
     """(Gains, Plant, OperatingPoint, InitialEstimates) from the CLI's options: the
-    paper's gains for `controller`, then the gains file (with `complete`, it must hold
-    all nine gains), then `--set` values."""
+    paper's gains for `controller`, then the gains file's values (or `gain_values`,
+    already read; with `complete`, all nine gains), then `--set` values; the plant
+    `preset`, then `plant_values` (a gains file's plant context), then `--set`."""
     from .io import read_gains
     from .parameters import (
         GAIN_NAMES,
@@ -128,7 +144,8 @@ def build_parameters(
     )
 
     sets = dict(sets or {})
-    gain_values = read_gains(gains_file, complete=complete) if gains_file else {}
+    if gain_values is None:
+        gain_values = read_gains(gains_file, complete=complete) if gains_file else {}
     groups = {"gains": {}, "plant": {}, "op": {}, "init": {}}
     owners = {
         **{n: "gains" for n in GAIN_NAMES},
@@ -145,12 +162,68 @@ def build_parameters(
             )
         groups[owners[name]][name] = value
     gains = Gains.paper(controller, **{**gain_values, **groups["gains"]})
-    plant = Plant.preset(preset, **groups["plant"])
+    plant = Plant.preset(preset, **{**(plant_values or {}), **groups["plant"]})
     return (
         gains,
         plant,
         OperatingPoint(**groups["op"]),
         InitialEstimates(**groups["init"]),
+    )
+
+
+def _gains_context(path, controller=None, adaptation=None, preset=None, complete=False):
+    """(Context, gain values) of the gains file at `path` (None: no file) under the
+    flags given (None: not given): flag, else file, else the paper's default. The
+    warnings (a flag contradicting the file) and notes (a flat file) go to stderr,
+    one line each."""
+    from .gainsfile import read, resolve
+
+    gf = read(path, complete=complete) if path else None
+    ctx, values, messages = resolve(
+        gf, controller, adaptation, preset, source=f"--gains {path}"
+    )
+    for m in messages:
+        print(f"smibjax: {m}", file=sys.stderr)
+    return ctx, values
+
+
+def _warn_plant_sets(ctx, sets: dict) -> None:
+    """A warning for each `--set` of a plant value that contradicts the file's."""
+    for name, value in sets.items():
+        if name in ctx.plant and ctx.plant[name] != value:
+            print(
+                f"smibjax: warning: --set {name}={value:g} overrides {name} = "
+                f"{ctx.plant[name]:g} of the gains file",
+                file=sys.stderr,
+            )
+
+
+def _build_from_args(args, complete=False, controller=None):
+    """`build_parameters` for a command with --gains/--controller/--preset/
+    --adaptation: the context resolved (`_gains_context`) and written back into
+    `args` (controller, preset, adaptation), so the rest of the command uses it.
+    Returns (Gains, Plant, OperatingPoint, InitialEstimates)."""
+    sets = _parse_sets(args.set)
+    ctx, values = _gains_context(
+        args.gains,
+        controller if controller is not None else args.controller,
+        args.adaptation,
+        args.preset,
+        complete,
+    )
+    _warn_plant_sets(ctx, sets)
+    args.preset, args.adaptation = ctx.preset, ctx.adaptation
+    args.context = ctx
+    if controller is None:
+        args.controller = ctx.controller
+    return build_parameters(
+        ctx.controller,
+        ctx.preset,
+        None,
+        sets,
+        complete,
+        gain_values=values,
+        plant_values=ctx.plant,
     )
 
 
@@ -162,9 +235,7 @@ def _cmd_simulate(args) -> int:
     from .report import format_summary, metrics_dict
     from .simulate import simulate
 
-    gains, plant, op, init = build_parameters(
-        args.controller, args.preset, args.gains, _parse_sets(args.set)
-    )
+    gains, plant, op, init = _build_from_args(args)
     fault = Fault(
         t_fault=args.fault_time,
         t_clear=args.clear_time,
@@ -194,6 +265,7 @@ def _cmd_simulate(args) -> int:
             "fault": {k: float(getattr(fault, k)) for k in fault.__dataclass_fields__},
             "plant": {k: float(getattr(plant, k)) for k in plant.__dataclass_fields__},
             "adaptation": args.adaptation,
+            "context": args.context.describe(),
             "metrics": metrics_dict(m),
         }
         arrays["meta"] = np.array(json.dumps(meta, allow_nan=True))
@@ -315,9 +387,7 @@ def _run_mc(spec, out: Path, resume: bool, runner, title: str):
 
 
 def _cmd_montecarlo(args) -> int:
-    gains, plant, op, init = build_parameters(
-        args.controller, args.preset, args.gains, _parse_sets(args.set), complete=True
-    )
+    gains, plant, op, init = _build_from_args(args, complete=True)
     spec = _spec_from_args(args, gains, plant, op, init, _read_dist(args.dist))
     out = Path(args.out) if args.out else _fresh_out("montecarlo")
     if args.resume and not args.out:
@@ -362,14 +432,11 @@ def _print_mc(summary: dict, out: Path) -> None:
 
 def _cct_sets(args):
     """{label: Gains} for the CCT lanes: one per --controller."""
-    controllers = args.controller or ["aftsc"]
-    sets = _parse_sets(args.set)
+    controllers = args.controller or [None]  # None: the gains file's, else aftsc
     out, common = {}, None
     for c in dict.fromkeys(controllers):
-        gains, plant, op, init = build_parameters(
-            c, args.preset, args.gains, sets, complete=True
-        )
-        out[c] = gains
+        gains, plant, op, init = _build_from_args(args, complete=True, controller=c)
+        out[args.context.controller] = gains
         common = (plant, op, init)
     return out, common
 
@@ -478,19 +545,30 @@ def _cmd_cct(args) -> int:
 
 
 def _cmd_compare(args) -> int:
-    from .compare import resolve_gain_set, write_compare
+    from .compare import merge_cct, resolve_gain_set_context, write_compare
 
     _check_cct_args(args)
     sets = _parse_sets(args.set)
     specs = args.gains or ["paper", "paper-asc", "stable"]
-    gain_sets = {}
+    gain_sets, contexts = {}, {}
     for spec in specs:
-        label, g = resolve_gain_set(spec, sets)
+        label, g, ctx, messages = resolve_gain_set_context(
+            spec, sets, args.adaptation, args.preset
+        )
+        for m in messages:
+            print(f"smibjax: {m}", file=sys.stderr)
+        _warn_plant_sets(ctx, sets)
         base, i = label, 2
         while label in gain_sets:
             label, i = f"{base}-{i}", i + 1
-        gain_sets[label] = g
-    _, plant, op, init = build_parameters("aftsc", args.preset, None, sets)
+        gain_sets[label], contexts[label] = g, ctx
+    # each set under its own plant and adaptation: (plant, op, init) per set
+    parts = {
+        label: build_parameters(
+            ctx.controller, ctx.preset, None, sets, plant_values=ctx.plant
+        )[1:]
+        for label, ctx in contexts.items()
+    }
     dist = _read_dist(args.dist)
     out = Path(args.out) if args.out else _fresh_out("compare")
     if out.exists() and any(out.iterdir()) and not args.resume:
@@ -502,13 +580,35 @@ def _cmd_compare(args) -> int:
     with _runner(args) as runner:
         for label, g in gain_sets.items():
             print(f"== {label}")
-            spec = _spec_from_args(args, g, plant, op, init, dist)
+            plant, op, init = parts[label]
+            args_set = argparse.Namespace(
+                **{**vars(args), "adaptation": contexts[label].adaptation}
+            )
+            spec = _spec_from_args(args_set, g, plant, op, init, dist)
             sub = out / label
             resume = args.resume and (sub / "run.json").is_file()
             r, s = _run_mc(spec, sub, resume, runner, label)
             summaries[label], rows[label] = s, r
-    res = _run_cct(args, gain_sets, plant, op, init)
-    write_compare(out, summaries, rows, res)
+    # one CCT sweep per (adaptation, plant) group of sets
+    groups: dict[tuple, list[str]] = {}
+    for label, ctx in contexts.items():
+        key = (ctx.adaptation, ctx.preset, tuple(sorted(ctx.plant.items())))
+        groups.setdefault(key, []).append(label)
+    results = []
+    for (adaptation, *_), labels in groups.items():
+        plant, op, init = parts[labels[0]]
+        args_group = argparse.Namespace(**{**vars(args), "adaptation": adaptation})
+        results.append(
+            _run_cct(args_group, {n: gain_sets[n] for n in labels}, plant, op, init)
+        )
+    res = merge_cct(results, list(gain_sets))
+    write_compare(
+        out,
+        summaries,
+        rows,
+        res,
+        {label: ctx.describe() for label, ctx in contexts.items()},
+    )
     print((out / "compare.md").read_text())
     print(f"wrote {out}/compare.md, compare.json, compare.png")
     return 0
@@ -668,8 +768,18 @@ def _parser() -> argparse.ArgumentParser:
         default=[],
         help="override a gain (all sets), plant or operating-point value",
     )
-    k.add_argument("--preset", choices=["paper", "realistic"], default="paper")
-    k.add_argument("--adaptation", choices=["oracle", "realizable"], default="oracle")
+    k.add_argument(
+        "--preset",
+        choices=["paper", "realistic"],
+        default=None,
+        help="plant of every set (default: each file's, else paper)",
+    )
+    k.add_argument(
+        "--adaptation",
+        choices=["oracle", "realizable"],
+        default=None,
+        help="adaptation of every set (default: each file's, else oracle)",
+    )
     _add_max_steps(k)
     _add_tolerances(k)
     _add_mc_options(k, 1000)
