@@ -113,7 +113,7 @@ def _stable_batch_fn(
 def scan_durations(window: float, tol: float, scan_step: float) -> np.ndarray:
     """The scan's clearing durations (s): `tol`, then k * window / K for k = 1..K with
     K = ceil(window / scan_step), capped so that the spacing is at least `tol`."""
-    k = max(1, min(math.ceil(window / scan_step - 1e-9), int(window / tol)))
+    k = max(1, min(math.ceil(window / scan_step - 1e-9), int(window / tol + 1e-9)))
     grid = window * np.arange(1, k + 1) / k
     return np.concatenate([[tol], grid[grid > tol]])
 
@@ -186,11 +186,12 @@ def critical_clearing_times(
     **Returns:** `{"fault_location": [...], "cct": [...], "status": [...],
     "islands": [...], "criterion": ..., "window": t_reclose - t_fault, "tol": tol,
     "t_end": t_end, "scan": [durations], "sets": {name: {"cct": [...],
-    "status": [...], "islands": [...]}}}`; `cct[j]` is the largest duration (s) with
-    every shorter one stable, where the status is "ok" or "non_monotone", and None
-    otherwise; `islands[j]` lists the later stable [lo, hi] stretches of scan
-    durations (s). With several gain sets the top-level "cct", "status" and "islands"
-    are tables name -> list.
+    "status": [...], "islands": [...], "first_unstable": [...]}}}`; `cct[j]` is the
+    largest duration (s) with every shorter one stable, where the status is "ok" or
+    "non_monotone", and None otherwise; `first_unstable[j]` the unstable duration
+    (s) at most `tol` beyond it that ended the bisection; `islands[j]` lists the
+    later stable [lo, hi] stretches of scan durations (s). With several gain sets
+    the top-level "cct", "status" and "islands" are tables name -> list.
     """
     plant = Plant() if plant is None else plant
     op = OperatingPoint() if op is None else op
@@ -244,7 +245,7 @@ def critical_clearing_times(
 
     scan = scan_durations(window, tol, scan_step)
     n_scan = len(scan)
-    steps = max(1, math.ceil(math.log2(max(scan[1] - scan[0], tol) / tol)))
+    steps = max(1, math.ceil(math.log2(max(np.max(np.diff(scan)), tol) / tol)))
     from tqdm.auto import tqdm
 
     bar = tqdm(total=steps + 1, desc="cct scan + bisection", disable=not progress)
@@ -300,6 +301,10 @@ def critical_clearing_times(
             ],
             "status": [str(s) for s in status[sl]],
             "islands": islands[sl],
+            "first_unstable": [
+                float(v) if s in ("ok", "non_monotone") else None
+                for v, s in zip(hi[sl], status[sl], strict=True)
+            ],
         }
     sets = result["sets"]
     for key in ("cct", "status", "islands"):

@@ -431,12 +431,17 @@ def _print_mc(summary: dict, out: Path) -> None:
 
 
 def _cct_sets(args):
-    """{label: Gains} for the CCT lanes: one per --controller."""
+    """{label: Gains} for the CCT lanes: one per --controller (default: the gains
+    file's controller, else aftsc); each set's context is kept in `args.contexts`."""
     controllers = args.controller or [None]  # None: the gains file's, else aftsc
     out, common = {}, None
     for c in dict.fromkeys(controllers):
         gains, plant, op, init = _build_from_args(args, complete=True, controller=c)
         out[args.context.controller] = gains
+        args.contexts = {
+            **getattr(args, "contexts", {}),
+            **{args.context.controller: args.context.describe()},
+        }
         common = (plant, op, init)
     return out, common
 
@@ -483,6 +488,11 @@ def _print_cct(res: dict) -> None:
         f"{res['fault_time']:g} s, reclose {res['reclose_time']:g} s, t_end "
         f"{res.get('t_end', 10.0):g} s, tol {res['tol']:g} s:"
     )
+    for name, ctx in res.get("context", {}).items():
+        from .compare import context_text
+
+        c, a, p = context_text(ctx)
+        print(f"  {name}: controller {c}, adaptation {a}, plant {p}")
     print(f"{'location':>10} " + " ".join(f"{n:>16}" for n in res["sets"]))
     for j, lam in enumerate(locs):
         cells = [_cct_cell(res, r, j) for r in res["sets"].values()]
@@ -534,6 +544,7 @@ def _cmd_cct(args) -> int:
     _check_cct_args(args)
     sets, (plant, op, init) = _cct_sets(args)
     res = _run_cct(args, sets, plant, op, init)
+    res["context"] = args.contexts
     _print_cct(res)
     if args.out:
         out = Path(args.out)
