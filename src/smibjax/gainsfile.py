@@ -293,7 +293,8 @@ def resolve(
     paper's default. A flag that contradicts the file wins and adds a one-line
     warning naming both values; where the controller flag wins, the file's alpha is
     dropped (the controller sets it). A legacy flat file adds a note naming the
-    defaults assumed. `gains` are the file's gain values to apply."""
+    defaults assumed (a flag replaces an assumed default silently; only its alpha,
+    if any, is a stated controller). `gains` are the file's gain values to apply."""
     messages: list[str] = []
     if gf is None:
         ctx = Context(
@@ -316,10 +317,14 @@ def resolve(
                 + ", ".join(assumed)
                 + " (the paper's defaults; controller by alpha)"
             )
+    # a flat file states no context, only alpha (which names the controller)
+    stated = {"controller", "adaptation", "preset"}
+    if gf.legacy:
+        stated = {"controller"} if "alpha" in gf.gains else set()
     out = {}
     for key in ("controller", "adaptation", "preset"):
         flag = flags[key]
-        if flag is not None and flag != given[key]:
+        if flag is not None and flag != given[key] and key in stated:
             messages.append(
                 f"warning: --{key} {flag} overrides {key} {given[key]} of {source}"
             )
