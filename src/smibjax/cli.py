@@ -291,7 +291,8 @@ def _title(gains, fault, args) -> str:
         f"{c}: beta = ({float(gains.beta1):g}, {float(gains.beta2):g}), "
         f"alpha = {float(gains.alpha):.3g}; fault {float(fault.t_fault):g} -> "
         f"{float(fault.t_clear):g} s, reclose {float(fault.t_reclose):g} s, "
-        f"lam {float(fault.lam):g}, Xf {float(fault.Xf):g}; {args.preset} plant"
+        f"lam {float(fault.lam):g}, Xf {float(fault.Xf):g}; {args.preset} plant, "
+        f"{args.adaptation} adaptation"
     )
 
 
@@ -404,7 +405,7 @@ def _title_mc(gains, args) -> str:
     return (
         f"{c}: beta = ({float(gains.beta1):g}, {float(gains.beta2):g}), "
         f"alpha = {float(gains.alpha):.3g}; {args.n} scenarios, seed {args.seed}, "
-        f"{args.preset} plant"
+        f"{args.preset} plant, {args.adaptation} adaptation"
     )
 
 
