@@ -59,7 +59,7 @@ from .parameters import (
 )
 from .simulate import simulate
 
-__all__ = ["critical_clearing_times", "CRITERIA", "STATUSES"]
+__all__ = ["critical_clearing_times", "scan_durations", "CRITERIA", "STATUSES"]
 
 # Stability criteria of a CCT run (MODEL.md section 2, "Baselines", and section 4).
 CRITERIA = ("settled", "synchronism")

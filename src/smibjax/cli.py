@@ -482,6 +482,10 @@ def _islands_text(islands: list) -> str:
 
 
 def _print_cct(res: dict) -> None:
+    """The CCT table on stdout: criterion and times, each set's context, one row per
+    location, then notes on windows and non-monotone locations."""
+    from .compare import context_text
+
     locs = res["fault_location"]
     crit = res.get("criterion", "settled")
     print(
@@ -490,8 +494,6 @@ def _print_cct(res: dict) -> None:
         f"{res.get('t_end', 10.0):g} s, tol {res['tol']:g} s:"
     )
     for name, ctx in res.get("context", {}).items():
-        from .compare import context_text
-
         c, a, p = context_text(ctx)
         print(f"  {name}: controller {c}, adaptation {a}, plant {p}")
     print(f"{'location':>10} " + " ".join(f"{n:>16}" for n in res["sets"]))
