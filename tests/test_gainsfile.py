@@ -44,6 +44,13 @@ def test_the_tuner_writes_the_documented_schema(tuned):
         "aftsc", "realizable", {"preset": "realistic", **REALISTIC}, {}, STABLE
     )
     assert read_gains(tuned, complete=True) == STABLE  # flat readers get the gains
+    # an infinite limit is written as null and read back as no limit
+    wide = gainsfile.GainsFile(
+        "aftsc", "oracle", {"preset": "realistic", "uf_max": float("inf")}, {}, {}
+    )
+    gainsfile.write(tuned, wide)
+    assert json.loads(tuned.read_text())["plant"]["uf_max"] is None
+    assert gainsfile.read(tuned) == wide
 
 
 def test_resolve_flag_then_file_then_paper(tuned):

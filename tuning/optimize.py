@@ -364,10 +364,11 @@ def run(
 
 def _gains_file(cfg: dict, gains) -> gainsfile.GainsFile:
     """The gains with what they were tuned for (schema smibjax.gains/1): controller,
-    adaptation mode and plant preset with its input limits (pu)."""
+    adaptation mode and plant preset with its finite input limits (pu)."""
     plant = sj.Plant.preset(cfg["preset"])
     limits = {k: float(getattr(plant, k)) for k in ("uf_min", "uf_max")}
     limits.update({k: float(getattr(plant, k)) for k in ("ur_min", "ur_max")})
+    limits = {k: v for k, v in limits.items() if np.isfinite(v)}  # none: no limit
     values = gains_to_dict(gains)
     # alpha = 1 is the ASC law whatever the start (a logit can round up to 1.0)
     controller = "asc" if values["alpha"] == 1.0 else cfg["controller"]

@@ -97,11 +97,11 @@ class GainsFile:
     legacy: bool = False
 
     def to_dict(self) -> dict:
-        """The JSON layout of the schema (infinite limits left out: no limit)."""
+        """The JSON layout of the schema (an infinite limit written as null: no
+        limit)."""
         plant = {
-            k: v
+            k: None if isinstance(v, float) and math.isinf(v) else v
             for k, v in self.plant.items()
-            if not (isinstance(v, float) and math.isinf(v))
         }
         return {
             "schema": self.schema,
