@@ -304,8 +304,10 @@ def test_compare_and_montecarlo_commands(reference_run, tmp_path, capsys):
     argv += ["--fault-location", "0.5", "--tol", "0.05", "--out", str(cmp)]
     assert main(argv) == 0
     table = (cmp / "compare.md").read_text()
-    assert f"| tuned | {100 * ref_summary['stable_fraction']:.1f} (" in table
-    assert "| paper | 0.0 (0.0-27.8) |" in table and table.rstrip().endswith("none |")
+    frac = 100 * ref_summary["stable_fraction"]
+    assert f"| tuned | aftsc | oracle | paper | {frac:.1f} (" in table  # flat file
+    assert "| paper | aftsc | oracle | paper | 0.0 (0.0-27.8) |" in table
+    assert table.rstrip().endswith("none |")
     data = json.loads((cmp / "compare.json").read_text())
     assert data["montecarlo"]["tuned"] == ref_summary
     assert data["cct"]["sets"]["paper"]["status"] == ["unstable_at_min"]

@@ -164,7 +164,11 @@ def test_end_to_end_run_writes_outputs_usable_by_simulate(tmp_path, capsys):
     ):
         assert (out / name).stat().st_size > 0, name
     gains = json.loads((out / "gains.json").read_text())
-    assert sorted(gains) == sorted(PAPER)
+    assert gains["schema"] == "smibjax.gains/1" and sorted(gains["gains"]) == sorted(
+        PAPER
+    )
+    assert (gains["controller"], gains["adaptation"]) == ("aftsc", "oracle")
+    assert gains["plant"] == {"preset": "paper"}  # no limits: none written
     report = (out / "report.md").read_text()
     assert "stable fraction" in report and "fixed grid" in report
     hist = np.genfromtxt(out / "history.csv", delimiter=",", names=True)

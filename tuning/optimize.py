@@ -26,6 +26,7 @@ import numpy as np  # noqa: E402
 import optax  # noqa: E402
 
 import smibjax as sj  # noqa: E402
+from smibjax import gainsfile  # noqa: E402
 from smibjax.controllers import (  # noqa: E402
     CONTROLLERS,
     EstimateBox,
@@ -439,15 +440,42 @@ def run(
     return state
 
 
+def _gains_file(cfg: dict, gains, names) -> gainsfile.GainsFile:
+    """The gains with what they were tuned for (schema smibjax.gains/1): controller,
+    adaptation mode, the controller's options and the plant preset with its finite
+    input limits (pu)."""
+    plant = sj.Plant.preset(cfg["preset"])
+    limits = {k: float(getattr(plant, k)) for k in ("uf_min", "uf_max")}
+    limits.update({k: float(getattr(plant, k)) for k in ("ur_min", "ur_max")})
+    limits = {k: v for k, v in limits.items() if np.isfinite(v)}  # none: no limit
+    values = gains_to_dict(gains, names)
+    controller = cfg["controller"]
+    options = {}
+    if CONTROLLERS[controller] is Synergetic:
+        # alpha = 1 is the ASC law whatever the start (a logit can round up to 1.0)
+        controller = "asc" if values["alpha"] == 1.0 else controller
+        options = {
+            "projection": cfg["options"]["projection"],
+            "phi_layer": float(cfg["options"]["phi_layer"]),
+        }
+    return gainsfile.GainsFile(
+        controller=controller,
+        adaptation=cfg["adaptation"],
+        plant={"preset": cfg["preset"], **limits},
+        options=options,
+        gains=values,
+    )
+
+
 def finish(cfg: dict, out: Path, state: dict) -> None:
     """gains.json, history.csv, report.md and plots."""
     from .report import write_report
 
     names = tuple(state["space"].kinds)
     gains = state["space"].to_gains(state["best"]["raw"])
-    write_json(out / "gains.json", gains_to_dict(gains, names))
+    gainsfile.write(out / "gains.json", _gains_file(cfg, gains, names))
     last = state["space"].to_gains(state["raw"])
-    write_json(out / "gains_last.json", gains_to_dict(last, names))
+    gainsfile.write(out / "gains_last.json", _gains_file(cfg, last, names))
     write_history(out, state["history"])
     write_report(cfg, out, state)
 

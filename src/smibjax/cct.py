@@ -1,16 +1,39 @@
 """Critical clearing time (MODEL.md section 4): the largest clearing duration
-t_clear - t_fault for which the run is stable, by bisection over vmapped lanes.
+t_clear - t_fault (s) such that the run is stable for it and for every shorter
+duration on the tolerance grid.
 
-Every (gain set, fault location) pair is one lane; each bisection step simulates all
-lanes at their current midpoints in one batched call (split over the devices), so the
-cost is about log2(window / tol) batched runs. The window is
-(0, t_reclose - t_fault]: a clearing duration cannot run past reclosure. Where the
-run is still stable at the end of the window the CCT is not a number (it lies beyond
-the window: reported as status "exceeds_window"); where it is unstable even for the
-shortest duration tried (`tol`), status "unstable_at_min".
+Stability of a run is judged by one of two criteria (`CRITERIA`): "settled" (MODEL.md
+section 4: no loss of synchronism and delta back in its band at t_end) or
+"synchronism" (the industry definition: no loss of synchronism up to t_end, and the
+solver's step budget not spent).
 
-Bisection assumes one stability boundary along the duration axis; it returns a
-duration that is stable with a duration at most `tol` longer that is not.
+Stability need not be monotone in the clearing duration: a controller under input
+limits can recover from a 0.15 s and a 0.40 s fault but not settle by t_end after
+0.2-0.35 s. Bisection on such a verdict finds *a* boundary, not the critical one, so
+the computation has two stages, each batched over every lane (one lane per (gain set,
+fault location) pair, split over the devices):
+
+1. **Scan.** Every lane at K + 1 durations at once (one batched call of
+   lanes x (K + 1) runs): the shortest duration `tol`, then k * window / K for
+   k = 1..K, K = ceil(window / scan_step). The first unstable scan duration ends the
+   stable stretch from zero.
+2. **Bisection** inside that first unstable bracket (stable lower end, unstable upper
+   end) down to `tol`: about log2(window / (K tol)) batched calls of one run per lane.
+
+The window is (0, t_reclose - t_fault]: a clearing duration cannot run past
+reclosure. Status per lane:
+
+- "ok": the CCT is a number, and no scanned duration beyond it is stable;
+- "non_monotone": the CCT is a number, but later scanned durations are stable again:
+  the stable "islands" are listed as [lo, hi] intervals of scan durations (s);
+- "exceeds_window": every scanned duration is stable: the CCT lies beyond the window
+  (not a number);
+- "unstable_at_min": unstable already at the shortest duration `tol` (not a number;
+  stable islands further on, if any, are listed too).
+
+Islands and unstable stretches narrower than the scan step can be missed; inside the
+bracket the bisection returns a duration that is stable with one at most `tol` longer
+that is not.
 """
 
 from __future__ import annotations
@@ -36,7 +59,11 @@ from .parameters import (
 )
 from .simulate import simulate
 
-__all__ = ["critical_clearing_times"]
+__all__ = ["critical_clearing_times", "scan_durations", "CRITERIA", "STATUSES"]
+
+# Stability criteria of a CCT run (MODEL.md section 2, "Baselines", and section 4).
+CRITERIA = ("settled", "synchronism")
+STATUSES = ("ok", "non_monotone", "exceeds_window", "unstable_at_min")
 
 
 def _stable_batch_fn(
@@ -49,10 +76,11 @@ def _stable_batch_fn(
     max_steps: int = 50_000,
     rtol: float = 1e-6,
     atol: float = 1e-8,
+    criterion: str = "settled",
 ):
-    """Jitted (gains, fault) lanes -> stable flags. The plant, operating point and
-    initial estimates are compile-time constants (XLA folds what derives from them, as
-    in the Monte Carlo engine); one compilation serves every bisection step.
+    """Jitted (gains, fault) lanes -> stable flags under `criterion`. The plant,
+    operating point and initial estimates are compile-time constants (XLA folds what
+    derives from them, as in the Monte Carlo engine); one compilation per batch shape.
     `alpha_one`: every lane has alpha = 1 (compiled without signed powers)."""
 
     @eqx.filter_jit
@@ -73,11 +101,59 @@ def _stable_batch_fn(
                 atol=atol,
                 max_steps=max_steps,
             )
+            if criterion == "synchronism":
+                return ~(tr.lost_sync | tr.budget_exhausted)
             return metrics(tr).stable
 
         return jax.vmap(one)(gains, fault)
 
     return run
+
+
+def scan_durations(window: float, tol: float, scan_step: float) -> np.ndarray:
+    """The scan's clearing durations (s): `tol`, then k * window / K for k = 1..K with
+    K = ceil(window / scan_step), capped so that the spacing is at least `tol`."""
+    k = max(1, min(math.ceil(window / scan_step - 1e-9), int(window / tol + 1e-9)))
+    grid = window * np.arange(1, k + 1) / k
+    return np.concatenate([[tol], grid[grid > tol]])
+
+
+def _islands(stable: np.ndarray, durations: np.ndarray) -> list[list[float]]:
+    """Maximal runs of stable scan durations, as [first, last] duration pairs (s)."""
+    out, start = [], None
+    for i, ok in enumerate(stable):
+        if ok and start is None:
+            start = i
+        if start is not None and (not ok or i == len(stable) - 1):
+            end = i if ok else i - 1
+            out.append([float(durations[start]), float(durations[end])])
+            start = None
+    return out
+
+
+def _check_window(fault_time, reclose_time, t_end, tol, scan_step) -> float:
+    """The clearing window t_reclose - t_fault (s), after checking the times."""
+    window = reclose_time - fault_time
+    if not (math.isfinite(fault_time) and fault_time >= 0):
+        raise ParameterError(
+            f"fault time = {fault_time:g} is not allowed: must be >= 0"
+        )
+    if not window > 0:
+        raise ParameterError(
+            f"reclose time = {reclose_time:g} s is not allowed: must be after the "
+            f"fault time {fault_time:g} s"
+        )
+    if not (math.isfinite(t_end) and t_end > reclose_time):
+        raise ParameterError(
+            f"t_end = {t_end:g} s is not allowed: must be after the reclose time "
+            f"{reclose_time:g} s (fault time + window)"
+        )
+    if not 0 < tol < window:
+        raise ParameterError(
+            f"tol = {tol:g} is not allowed: must be within (0, {window:g}) s"
+        )
+    require_positive("scan_step", scan_step)
+    return window
 
 
 def critical_clearing_times(
@@ -91,6 +167,8 @@ def critical_clearing_times(
     reclose_time: float = 2.0,
     fault_reactance: float = 0.0,
     tol: float = 1e-3,
+    scan_step: float = 0.05,
+    criterion: str = "settled",
     adaptation: str = "oracle",
     t_end: float = 10.0,
     max_steps: int = 50_000,
@@ -98,17 +176,31 @@ def critical_clearing_times(
     atol: float = 1e-8,
     progress: bool = False,
 ) -> dict:
-    """CCT (s) of every gain set at every fault location.
+    """CCT (s) of every gain set at every fault location (module docstring: scan,
+    then bisection in the first unstable bracket).
 
-    **Returns:** `{"fault_location": [...], "cct": [...], "status": [...], "window":
-    t_reclose - t_fault, "tol": tol, "sets": {name: {"cct": [...], "status": [...]}}}`;
-    `cct[j]` is the largest stable duration found (s) where status is "ok", and None
-    otherwise ("exceeds_window", "unstable_at_min"). With several gain sets the
-    top-level "cct" and "status" are tables name -> list.
+    `tol` (s): bisection tolerance and shortest duration tried; `scan_step` (s): the
+    scan's spacing (at most; the window is split evenly); `criterion`: "settled" or
+    "synchronism"; `t_end` (s): horizon of every run, after `reclose_time`.
+
+    **Returns:** `{"fault_location": [...], "cct": [...], "status": [...],
+    "islands": [...], "criterion": ..., "window": t_reclose - t_fault, "tol": tol,
+    "t_end": t_end, "scan": [durations], "sets": {name: {"cct": [...],
+    "status": [...], "islands": [...], "first_unstable": [...]}}}`; `cct[j]` is the
+    largest duration (s) with every shorter one stable, where the status is "ok" or
+    "non_monotone", and None otherwise; `first_unstable[j]` the unstable duration
+    (s) at most `tol` beyond it that ended the bisection; `islands[j]` lists the
+    later stable [lo, hi] stretches of scan durations (s). With several gain sets
+    the top-level "cct", "status" and "islands" are tables name -> list.
     """
     plant = Plant() if plant is None else plant
     op = OperatingPoint() if op is None else op
     init = InitialEstimates() if init is None else init
+    if criterion not in CRITERIA:
+        raise ParameterError(
+            f"criterion = {criterion!r} is not allowed: must be one of "
+            f"{', '.join(CRITERIA)}"
+        )
     locs = [float(x) for x in np.atleast_1d(fault_locations)]
     if not locs:
         raise ParameterError("fault_location: give at least one location")
@@ -117,25 +209,7 @@ def critical_clearing_times(
             raise ParameterError(
                 f"fault location {lam:g} is not allowed: must be within (0, 1)"
             )
-    window = reclose_time - fault_time
-    if not (math.isfinite(fault_time) and fault_time >= 0):
-        raise ParameterError(
-            f"fault time = {fault_time:g} is not allowed: must be >= 0"
-        )
-    if not window > 0:
-        raise ParameterError(
-            f"reclose time = {reclose_time:g} s is not allowed: must be after the "
-            f"fault time {fault_time:g} s"
-        )
-    if reclose_time >= t_end:
-        raise ParameterError(
-            f"reclose time = {reclose_time:g} s is not allowed: must be before "
-            f"t_end = {t_end:g} s"
-        )
-    if not 0 < tol < window:
-        raise ParameterError(
-            f"tol = {tol:g} is not allowed: must be within (0, {window:g}) s"
-        )
+    window = _check_window(fault_time, reclose_time, t_end, tol, scan_step)
     if not gain_sets:
         raise ParameterError("give at least one gain set")
     names = list(gain_sets)
@@ -143,7 +217,7 @@ def critical_clearing_times(
     gains = jax.tree_util.tree_map(
         lambda *xs: jnp.stack(xs), *[gain_sets[n] for n, _ in pairs]
     )
-    lam = jnp.asarray([p[1] for p in pairs])
+    lam = np.asarray([p[1] for p in pairs])
     n_lanes = len(pairs)
 
     alpha_one = all(float(gain_sets[n].alpha) == 1.0 for n in names)
@@ -151,66 +225,90 @@ def critical_clearing_times(
     require_positive("rtol", rtol)
     require_positive("atol", atol)
     batch_fn = _stable_batch_fn(
-        plant, op, init, adaptation, t_end, alpha_one, max_steps, rtol, atol
+        plant, op, init, adaptation, t_end, alpha_one, max_steps, rtol, atol, criterion
     )
 
-    def stable_at(durations: np.ndarray) -> np.ndarray:
-        tf = jnp.full(n_lanes, fault_time)
+    def stable_at(durations: np.ndarray, lanes: np.ndarray) -> np.ndarray:
+        """Stable flags of lanes[i] cleared after durations[i] (s), in one call."""
+        n = len(durations)
+        tf = jnp.full(n, fault_time)
         fault = Fault(
             t_fault=tf,
             t_clear=tf + jnp.asarray(durations),
-            t_reclose=jnp.full(n_lanes, reclose_time),
-            lam=lam,
-            Xf=jnp.full(n_lanes, fault_reactance),
+            t_reclose=jnp.full(n, reclose_time),
+            lam=jnp.asarray(lam[lanes]),
+            Xf=jnp.full(n, fault_reactance),
         )
-        out = device_map(lambda _, b: batch_fn(b), None, (gains, fault))
+        g = jax.tree_util.tree_map(lambda a: a[jnp.asarray(lanes)], gains)
+        out = device_map(lambda _, b: batch_fn(b), None, (g, fault))
         return np.asarray(out, dtype=bool)
 
-    steps = max(1, math.ceil(math.log2((window - tol) / tol)))
+    scan = scan_durations(window, tol, scan_step)
+    n_scan = len(scan)
+    steps = max(1, math.ceil(math.log2(max(np.max(np.diff(scan)), tol) / tol)))
     from tqdm.auto import tqdm
 
-    bar = tqdm(total=steps + 2, desc="cct bisection", disable=not progress)
-    at_max = stable_at(np.full(n_lanes, window))
+    bar = tqdm(total=steps + 1, desc="cct scan + bisection", disable=not progress)
+    lanes = np.repeat(np.arange(n_lanes), n_scan)
+    grid = stable_at(np.tile(scan, n_lanes), lanes).reshape(n_lanes, n_scan)
     bar.update()
-    at_min = stable_at(np.full(n_lanes, tol))
-    bar.update()
-    lo = np.full(n_lanes, tol)  # stable
-    hi = np.full(n_lanes, window)  # unstable
-    active = at_min & ~at_max
+    all_stable = grid.all(axis=1)
+    first_bad = np.where(all_stable, n_scan, np.argmin(grid, axis=1))
+    active = (first_bad > 0) & ~all_stable
+    lo = np.where(active, scan[np.maximum(first_bad - 1, 0)], np.nan)  # stable
+    hi = np.where(active, scan[np.minimum(first_bad, n_scan - 1)], np.nan)  # not
+    islands = [
+        _islands(grid[i, first_bad[i] :], scan[first_bad[i] :]) for i in range(n_lanes)
+    ]
+    everyone = np.arange(n_lanes)  # one batch shape for every step: one compile
     for _ in range(steps):
-        if not active.any() or np.all(hi[active] - lo[active] <= tol):
+        todo = active & (hi - lo > tol * (1 + 1e-9))
+        if not todo.any():
             break
-        mid = np.where(active, 0.5 * (lo + hi), tol)
-        ok = stable_at(mid)
-        lo = np.where(active & ok, mid, lo)
-        hi = np.where(active & ~ok, mid, hi)
+        mid = np.where(todo, 0.5 * (lo + hi), tol)
+        ok = stable_at(mid, everyone)
+        lo = np.where(todo & ok, mid, lo)
+        hi = np.where(todo & ~ok, mid, hi)
         bar.update()
     bar.close()
     status = np.where(
-        at_max, "exceeds_window", np.where(at_min, "ok", "unstable_at_min")
+        all_stable,
+        "exceeds_window",
+        np.where(
+            ~active,
+            "unstable_at_min",
+            np.where([bool(x) for x in islands], "non_monotone", "ok"),
+        ),
     )
     result = {
         "fault_location": locs,
         "fault_time": fault_time,
         "reclose_time": reclose_time,
         "fault_reactance": fault_reactance,
+        "criterion": criterion,
+        "t_end": t_end,
         "window": window,
         "tol": tol,
+        "scan": [float(d) for d in scan],
         "sets": {},
     }
     for i, name in enumerate(names):
         sl = slice(i * len(locs), (i + 1) * len(locs))
         result["sets"][name] = {
             "cct": [
-                float(v) if s == "ok" else None
+                float(v) if s in ("ok", "non_monotone") else None
                 for v, s in zip(lo[sl], status[sl], strict=True)
             ],
             "status": [str(s) for s in status[sl]],
+            "islands": islands[sl],
+            "first_unstable": [
+                float(v) if s in ("ok", "non_monotone") else None
+                for v, s in zip(hi[sl], status[sl], strict=True)
+            ],
         }
     sets = result["sets"]
-    one = len(names) == 1
-    result["cct"] = sets[names[0]]["cct"] if one else {n: sets[n]["cct"] for n in names}
-    result["status"] = (
-        sets[names[0]]["status"] if one else {n: sets[n]["status"] for n in names}
-    )
+    for key in ("cct", "status", "islands"):
+        result[key] = (
+            sets[names[0]][key] if len(names) == 1 else {n: sets[n][key] for n in names}
+        )
     return result

@@ -32,16 +32,23 @@ def _add_common(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--controller",
         choices=["aftsc", "asc"],
-        default="aftsc",
-        help="AFTSC (alpha = 5/7) or ASC (alpha = 1); default aftsc",
+        default=None,
+        help="AFTSC (alpha = 5/7) or ASC (alpha = 1); default: the gains file's, "
+        "else aftsc",
     )
     p.add_argument(
         "--preset",
         choices=["paper", "realistic"],
-        default="paper",
-        help="plant input limits: paper (none) or realistic; default paper",
+        default=None,
+        help="plant input limits: paper (none) or realistic; default: the gains "
+        "file's, else paper",
     )
-    p.add_argument("--gains", metavar="FILE", help="flat JSON or TOML table of gains")
+    p.add_argument(
+        "--gains",
+        metavar="FILE",
+        help="gains file (JSON/TOML): with context (schema smibjax.gains/1, as the "
+        "tuner writes) or a flat table of gains",
+    )
     p.add_argument(
         "--set",
         metavar="NAME=VALUE",
@@ -52,8 +59,9 @@ def _add_common(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--adaptation",
         choices=["oracle", "realizable"],
-        default="oracle",
-        help="oracle (paper, uses the true theta) or realizable (k1=k2=0)",
+        default=None,
+        help="oracle (paper, uses the true theta) or realizable (k1=k2=0); default: "
+        "the gains file's, else oracle",
     )
     _add_max_steps(p)
 
@@ -112,11 +120,19 @@ def _parse_sets(items: list[str]) -> dict[str, float]:
 
 
 def build_parameters(
-    controller="aftsc", preset="paper", gains_file=None, sets=None, complete=False
+    controller="aftsc",
+    preset="paper",
+    gains_file=None,
+    sets=None,
+    complete=False,
+    *,
+    gain_values=None,
+    plant_values=None,
 ):
     """(Gains, Plant, OperatingPoint, InitialEstimates) from the CLI's options: the
-    paper's gains for `controller`, then the gains file (with `complete`, it must hold
-    all nine gains), then `--set` values."""
+    paper's gains for `controller`, then the gains file's values (or `gain_values`,
+    already read; with `complete`, all nine gains), then `--set` values; the plant
+    `preset`, then `plant_values` (a gains file's plant context), then `--set`."""
     from .io import read_gains
     from .parameters import (
         GAIN_NAMES,
@@ -128,7 +144,8 @@ def build_parameters(
     )
 
     sets = dict(sets or {})
-    gain_values = read_gains(gains_file, complete=complete) if gains_file else {}
+    if gain_values is None:
+        gain_values = read_gains(gains_file, complete=complete) if gains_file else {}
     groups = {"gains": {}, "plant": {}, "op": {}, "init": {}}
     owners = {
         **{n: "gains" for n in GAIN_NAMES},
@@ -145,12 +162,68 @@ def build_parameters(
             )
         groups[owners[name]][name] = value
     gains = Gains.paper(controller, **{**gain_values, **groups["gains"]})
-    plant = Plant.preset(preset, **groups["plant"])
+    plant = Plant.preset(preset, **{**(plant_values or {}), **groups["plant"]})
     return (
         gains,
         plant,
         OperatingPoint(**groups["op"]),
         InitialEstimates(**groups["init"]),
+    )
+
+
+def _gains_context(path, controller=None, adaptation=None, preset=None, complete=False):
+    """(Context, gain values) of the gains file at `path` (None: no file) under the
+    flags given (None: not given): flag, else file, else the paper's default. The
+    warnings (a flag contradicting the file) and notes (a flat file) go to stderr,
+    one line each."""
+    from .gainsfile import read, resolve
+
+    gf = read(path, complete=complete) if path else None
+    ctx, values, messages = resolve(
+        gf, controller, adaptation, preset, source=f"--gains {path}"
+    )
+    for m in messages:
+        print(f"smibjax: {m}", file=sys.stderr)
+    return ctx, values
+
+
+def _warn_plant_sets(ctx, sets: dict) -> None:
+    """A warning for each `--set` of a plant value that contradicts the file's."""
+    for name, value in sets.items():
+        if name in ctx.plant and ctx.plant[name] != value:
+            print(
+                f"smibjax: warning: --set {name}={value:g} overrides {name} = "
+                f"{ctx.plant[name]:g} of the gains file",
+                file=sys.stderr,
+            )
+
+
+def _build_from_args(args, complete=False, controller=None):
+    """`build_parameters` for a command with --gains/--controller/--preset/
+    --adaptation: the context resolved (`_gains_context`) and written back into
+    `args` (controller, preset, adaptation), so the rest of the command uses it.
+    Returns (Gains, Plant, OperatingPoint, InitialEstimates)."""
+    sets = _parse_sets(args.set)
+    ctx, values = _gains_context(
+        args.gains,
+        controller if controller is not None else args.controller,
+        args.adaptation,
+        args.preset,
+        complete,
+    )
+    _warn_plant_sets(ctx, sets)
+    args.preset, args.adaptation = ctx.preset, ctx.adaptation
+    args.context = ctx
+    if controller is None:
+        args.controller = ctx.controller
+    return build_parameters(
+        ctx.controller,
+        ctx.preset,
+        None,
+        sets,
+        complete,
+        gain_values=values,
+        plant_values=ctx.plant,
     )
 
 
@@ -162,9 +235,7 @@ def _cmd_simulate(args) -> int:
     from .report import format_summary, metrics_dict
     from .simulate import simulate
 
-    gains, plant, op, init = build_parameters(
-        args.controller, args.preset, args.gains, _parse_sets(args.set)
-    )
+    gains, plant, op, init = _build_from_args(args)
     fault = Fault(
         t_fault=args.fault_time,
         t_clear=args.clear_time,
@@ -194,6 +265,7 @@ def _cmd_simulate(args) -> int:
             "fault": {k: float(getattr(fault, k)) for k in fault.__dataclass_fields__},
             "plant": {k: float(getattr(plant, k)) for k in plant.__dataclass_fields__},
             "adaptation": args.adaptation,
+            "context": args.context.describe(),
             "metrics": metrics_dict(m),
         }
         arrays["meta"] = np.array(json.dumps(meta, allow_nan=True))
@@ -219,7 +291,8 @@ def _title(gains, fault, args) -> str:
         f"{c}: beta = ({float(gains.beta1):g}, {float(gains.beta2):g}), "
         f"alpha = {float(gains.alpha):.3g}; fault {float(fault.t_fault):g} -> "
         f"{float(fault.t_clear):g} s, reclose {float(fault.t_reclose):g} s, "
-        f"lam {float(fault.lam):g}, Xf {float(fault.Xf):g}; {args.preset} plant"
+        f"lam {float(fault.lam):g}, Xf {float(fault.Xf):g}; {args.preset} plant, "
+        f"{args.adaptation} adaptation"
     )
 
 
@@ -315,9 +388,7 @@ def _run_mc(spec, out: Path, resume: bool, runner, title: str):
 
 
 def _cmd_montecarlo(args) -> int:
-    gains, plant, op, init = build_parameters(
-        args.controller, args.preset, args.gains, _parse_sets(args.set), complete=True
-    )
+    gains, plant, op, init = _build_from_args(args, complete=True)
     spec = _spec_from_args(args, gains, plant, op, init, _read_dist(args.dist))
     out = Path(args.out) if args.out else _fresh_out("montecarlo")
     if args.resume and not args.out:
@@ -334,7 +405,7 @@ def _title_mc(gains, args) -> str:
     return (
         f"{c}: beta = ({float(gains.beta1):g}, {float(gains.beta2):g}), "
         f"alpha = {float(gains.alpha):.3g}; {args.n} scenarios, seed {args.seed}, "
-        f"{args.preset} plant"
+        f"{args.preset} plant, {args.adaptation} adaptation"
     )
 
 
@@ -361,15 +432,17 @@ def _print_mc(summary: dict, out: Path) -> None:
 
 
 def _cct_sets(args):
-    """{label: Gains} for the CCT lanes: one per --controller."""
-    controllers = args.controller or ["aftsc"]
-    sets = _parse_sets(args.set)
+    """{label: Gains} for the CCT lanes: one per --controller (default: the gains
+    file's controller, else aftsc); each set's context is kept in `args.contexts`."""
+    controllers = args.controller or [None]  # None: the gains file's, else aftsc
     out, common = {}, None
     for c in dict.fromkeys(controllers):
-        gains, plant, op, init = build_parameters(
-            c, args.preset, args.gains, sets, complete=True
-        )
-        out[c] = gains
+        gains, plant, op, init = _build_from_args(args, complete=True, controller=c)
+        out[args.context.controller] = gains
+        args.contexts = {
+            **getattr(args, "contexts", {}),
+            **{args.context.controller: args.context.describe()},
+        }
         common = (plant, op, init)
     return out, common
 
@@ -384,32 +457,62 @@ def _check_cct_args(args) -> None:
         )
     if not args.tol > 0:
         raise CLIError(f"--tol {args.tol:g} is not allowed: must be > 0")
+    if not args.scan_step > 0:
+        raise CLIError(f"--scan-step {args.scan_step:g} is not allowed: must be > 0")
+    if not (math.isfinite(args.t_end) and args.t_end > args.reclose_time):
+        raise CLIError(
+            f"--t-end {args.t_end:g} is not allowed: must be after --reclose-time "
+            f"{args.reclose_time:g} (the fault time plus the clearing window)"
+        )
+
+
+def _cct_cell(res: dict, r: dict, j: int) -> str:
+    """One printed CCT cell: the number, '*' when not monotone, or what it is not."""
+    st = r["status"][j]
+    if st == "exceeds_window":
+        return f"> {res['window']:g} (window)"
+    if st == "unstable_at_min":
+        return "none (unstable)" + ("*" if r["islands"][j] else "")
+    return f"{r['cct'][j]:.4f}" + ("*" if st == "non_monotone" else "")
+
+
+def _islands_text(islands: list) -> str:
+    """Stable islands as '[0.4, 0.45] s, [0.6, 0.6] s'."""
+    return ", ".join(f"[{lo:g}, {hi:g}] s" for lo, hi in islands)
 
 
 def _print_cct(res: dict) -> None:
+    """The CCT table on stdout: criterion and times, each set's context, one row per
+    location, then notes on windows and non-monotone locations."""
+    from .compare import context_text
+
     locs = res["fault_location"]
+    crit = res.get("criterion", "settled")
     print(
-        f"critical clearing time (s), fault at {res['fault_time']:g} s, reclose "
-        f"{res['reclose_time']:g} s, tol {res['tol']:g} s:"
+        f"critical clearing time (s), criterion {crit}, fault at "
+        f"{res['fault_time']:g} s, reclose {res['reclose_time']:g} s, t_end "
+        f"{res.get('t_end', 10.0):g} s, tol {res['tol']:g} s:"
     )
+    for name, ctx in res.get("context", {}).items():
+        c, a, p = context_text(ctx)
+        print(f"  {name}: controller {c}, adaptation {a}, plant {p}")
     print(f"{'location':>10} " + " ".join(f"{n:>16}" for n in res["sets"]))
     for j, lam in enumerate(locs):
-        cells = []
-        for r in res["sets"].values():
-            st = r["status"][j]
-            cells.append(
-                f"> {res['window']:g} (window)"
-                if st == "exceeds_window"
-                else "none (unstable)"
-                if st == "unstable_at_min"
-                else f"{r['cct'][j]:.4f}"
-            )
+        cells = [_cct_cell(res, r, j) for r in res["sets"].values()]
         print(f"{lam:10g} " + " ".join(f"{c:>16}" for c in cells))
     if any("exceeds_window" in r["status"] for r in res["sets"].values()):
         print(
             f"note: '> {res['window']:g}' = still stable when cleared at reclosure: the "
             "CCT lies beyond the window (no number is given)"
         )
+    for name, r in res["sets"].items():
+        for j, lam in enumerate(locs):
+            if r["islands"][j]:
+                print(
+                    f"* non-monotone: {name} at location {lam:g} is stable again for "
+                    f"clearing durations {_islands_text(r['islands'][j])} (scan "
+                    "durations): the CCT is where stability first ends"
+                )
 
 
 def _run_cct(args, sets, plant, op, init) -> dict:
@@ -426,6 +529,8 @@ def _run_cct(args, sets, plant, op, init) -> dict:
         reclose_time=args.reclose_time,
         fault_reactance=getattr(args, "fault_reactance", 0.0),
         tol=args.tol,
+        scan_step=args.scan_step,
+        criterion=getattr(args, "criterion", "settled"),
         adaptation=args.adaptation,
         t_end=args.t_end,
         max_steps=args.max_steps,
@@ -442,6 +547,7 @@ def _cmd_cct(args) -> int:
     _check_cct_args(args)
     sets, (plant, op, init) = _cct_sets(args)
     res = _run_cct(args, sets, plant, op, init)
+    res["context"] = args.contexts
     _print_cct(res)
     if args.out:
         out = Path(args.out)
@@ -453,19 +559,30 @@ def _cmd_cct(args) -> int:
 
 
 def _cmd_compare(args) -> int:
-    from .compare import resolve_gain_set, write_compare
+    from .compare import merge_cct, resolve_gain_set_context, write_compare
 
     _check_cct_args(args)
     sets = _parse_sets(args.set)
     specs = args.gains or ["paper", "paper-asc", "stable"]
-    gain_sets = {}
+    gain_sets, contexts = {}, {}
     for spec in specs:
-        label, g = resolve_gain_set(spec, sets)
+        label, g, ctx, messages = resolve_gain_set_context(
+            spec, sets, args.adaptation, args.preset
+        )
+        for m in messages:
+            print(f"smibjax: {m}", file=sys.stderr)
+        _warn_plant_sets(ctx, sets)
         base, i = label, 2
         while label in gain_sets:
             label, i = f"{base}-{i}", i + 1
-        gain_sets[label] = g
-    _, plant, op, init = build_parameters("aftsc", args.preset, None, sets)
+        gain_sets[label], contexts[label] = g, ctx
+    # each set under its own plant and adaptation: (plant, op, init) per set
+    parts = {
+        label: build_parameters(
+            ctx.controller, ctx.preset, None, sets, plant_values=ctx.plant
+        )[1:]
+        for label, ctx in contexts.items()
+    }
     dist = _read_dist(args.dist)
     out = Path(args.out) if args.out else _fresh_out("compare")
     if out.exists() and any(out.iterdir()) and not args.resume:
@@ -477,13 +594,35 @@ def _cmd_compare(args) -> int:
     with _runner(args) as runner:
         for label, g in gain_sets.items():
             print(f"== {label}")
-            spec = _spec_from_args(args, g, plant, op, init, dist)
+            plant, op, init = parts[label]
+            args_set = argparse.Namespace(
+                **{**vars(args), "adaptation": contexts[label].adaptation}
+            )
+            spec = _spec_from_args(args_set, g, plant, op, init, dist)
             sub = out / label
             resume = args.resume and (sub / "run.json").is_file()
             r, s = _run_mc(spec, sub, resume, runner, label)
             summaries[label], rows[label] = s, r
-    res = _run_cct(args, gain_sets, plant, op, init)
-    write_compare(out, summaries, rows, res)
+    # one CCT sweep per (adaptation, plant) group of sets
+    groups: dict[tuple, list[str]] = {}
+    for label, ctx in contexts.items():
+        key = (ctx.adaptation, ctx.preset, tuple(sorted(ctx.plant.items())))
+        groups.setdefault(key, []).append(label)
+    results = []
+    for (adaptation, *_), labels in groups.items():
+        plant, op, init = parts[labels[0]]
+        args_group = argparse.Namespace(**{**vars(args), "adaptation": adaptation})
+        results.append(
+            _run_cct(args_group, {n: gain_sets[n] for n in labels}, plant, op, init)
+        )
+    res = merge_cct(results, list(gain_sets))
+    write_compare(
+        out,
+        summaries,
+        rows,
+        res,
+        {label: ctx.describe() for label, ctx in contexts.items()},
+    )
     print((out / "compare.md").read_text())
     print(f"wrote {out}/compare.md, compare.json, compare.png")
     return 0
@@ -530,6 +669,13 @@ def _add_cct_options(p, with_reactance=True) -> None:
     if with_reactance:
         p.add_argument("--fault-reactance", type=float, default=0.0, help="Xf (pu)")
     p.add_argument("--tol", type=float, default=1e-3, help="bisection tolerance (s)")
+    p.add_argument(
+        "--scan-step",
+        type=float,
+        default=0.05,
+        help="spacing (s) of the scan of clearing durations that precedes the "
+        "bisection and finds non-monotone stability (default 0.05)",
+    )
 
 
 def _cmd_reproduce(args) -> int:
@@ -589,7 +735,9 @@ def _parser() -> argparse.ArgumentParser:
     m.add_argument("--out", metavar="DIR", help="output folder (default: runs/...)")
     m.set_defaults(func=_cmd_montecarlo)
 
-    c = sub.add_parser("cct", help="critical clearing times by vmapped bisection")
+    c = sub.add_parser(
+        "cct", help="critical clearing times: vmapped scan, then bisection"
+    )
     c._sub = "cct"
     _add_common(c)
     c.set_defaults(controller=None)
@@ -599,7 +747,20 @@ def _parser() -> argparse.ArgumentParser:
             a.help = "one or more of aftsc, asc (default aftsc)"
     _add_cct_options(c)
     _add_tolerances(c)
-    c.add_argument("--t-end", type=float, default=10.0, help="horizon (s)")
+    c.add_argument(
+        "--t-end",
+        type=float,
+        default=10.0,
+        help="horizon of every run (s), after --reclose-time (default 10)",
+    )
+    c.add_argument(
+        "--criterion",
+        choices=["settled", "synchronism"],
+        default="settled",
+        help="settled: no loss of synchronism and delta back in its band by t_end "
+        "(default); synchronism: no loss of synchronism up to t_end (the industry "
+        "definition)",
+    )
     c.add_argument("--out", metavar="FILE.json", help="write the CCTs (+ a .png plot)")
     c.set_defaults(func=_cmd_cct)
 
@@ -621,8 +782,18 @@ def _parser() -> argparse.ArgumentParser:
         default=[],
         help="override a gain (all sets), plant or operating-point value",
     )
-    k.add_argument("--preset", choices=["paper", "realistic"], default="paper")
-    k.add_argument("--adaptation", choices=["oracle", "realizable"], default="oracle")
+    k.add_argument(
+        "--preset",
+        choices=["paper", "realistic"],
+        default=None,
+        help="plant of every set (default: each file's, else paper)",
+    )
+    k.add_argument(
+        "--adaptation",
+        choices=["oracle", "realizable"],
+        default=None,
+        help="adaptation of every set (default: each file's, else oracle)",
+    )
     _add_max_steps(k)
     _add_tolerances(k)
     _add_mc_options(k, 1000)

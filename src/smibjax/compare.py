@@ -1,8 +1,11 @@
 """Several gain sets side by side: the same Monte Carlo (same seed, same scenarios) and
 the same CCT sweep for each, in one table and one figure.
 
-A gain set is named by a file (a complete flat table of the nine gains, such as a
-tuner's `gains.json`) or by one of the built-in names in `BUILTIN_SETS`.
+A gain set is named by a file (a tuner's `gains.json` with its context, schema
+`smibjax.gains/1`, or a complete flat table of the nine gains) or by one of the
+built-in names in `BUILTIN_SETS`. Each set runs under its own context (controller,
+adaptation mode, plant): the flags if given, else the file's, else the paper's
+(`gainsfile.resolve`); the table and the files show it.
 """
 
 from __future__ import annotations
@@ -12,10 +15,18 @@ from pathlib import Path
 
 import numpy as np
 
-from .io import read_gains, write_json, write_text
+from .gainsfile import Context, read, resolve
+from .io import write_json, write_text
 from .parameters import GAIN_NAMES, Gains, ParameterError
 
-__all__ = ["BUILTIN_SETS", "resolve_gain_set", "compare_table", "plot_compare"]
+__all__ = [
+    "BUILTIN_SETS",
+    "resolve_gain_set",
+    "resolve_gain_set_context",
+    "compare_table",
+    "plot_compare",
+    "merge_cct",
+]
 
 # Built-in gain sets: the paper's (which lose synchronism, MODEL.md section 2) and
 # beta1 = beta2 = -1, the sign-corrected choice that stabilizes the loop.
@@ -27,24 +38,80 @@ BUILTIN_SETS = {
 }
 
 
-def resolve_gain_set(
-    spec: str, sets: dict[str, float] | None = None
-) -> tuple[str, Gains]:
-    """(label, Gains) of a built-in name or a complete gains file, with `sets` (gain
-    overrides) applied on top."""
+def resolve_gain_set_context(
+    spec: str,
+    sets: dict[str, float] | None = None,
+    adaptation: str | None = None,
+    preset: str | None = None,
+) -> tuple[str, Gains, Context, list[str]]:
+    """(label, Gains, context, messages) of a built-in name or a complete gains file,
+    with `sets` (gain overrides) applied on top. The context is the flag
+    (`adaptation`, `preset`; None = not given) if given, else the file's, else the
+    paper's; `messages` are the one-line warnings and notes to print."""
     sets = {k: v for k, v in (sets or {}).items() if k in GAIN_NAMES}
     if spec in BUILTIN_SETS:
         controller, values = BUILTIN_SETS[spec]
-        return spec, Gains.paper(controller, **{**values, **sets})
+        ctx, _, messages = resolve(None, controller, adaptation, preset)
+        return spec, Gains.paper(controller, **{**values, **sets}), ctx, messages
     path = Path(spec)
     if not path.exists():
         raise ParameterError(
             f"--gains {spec!r}: no such file, and not a built-in set "
             f"({', '.join(BUILTIN_SETS)})"
         )
-    values = read_gains(path, complete=True)
+    gf = read(path, complete=True)
+    ctx, values, messages = resolve(
+        gf, None, adaptation, preset, source=f"--gains {spec}"
+    )
     label = path.stem if path.stem != "gains" else path.parent.name or path.stem
-    return label, Gains(**{**values, **sets})
+    return label, Gains.paper(ctx.controller, **{**values, **sets}), ctx, messages
+
+
+def resolve_gain_set(
+    spec: str, sets: dict[str, float] | None = None
+) -> tuple[str, Gains]:
+    """(label, Gains) of a built-in name or a complete gains file, with `sets` (gain
+    overrides) applied on top (`resolve_gain_set_context` without the context)."""
+    label, gains, _, _ = resolve_gain_set_context(spec, sets)
+    return label, gains
+
+
+def context_text(ctx: dict) -> tuple[str, str, str]:
+    """(controller, adaptation, plant) cells of a `Context.describe()` dict; the plant
+    is its preset plus any field the file overrides, e.g. 'realistic (uf_max=3)'."""
+    plant = dict(ctx["plant"])
+    preset = plant.pop("preset")
+    from .parameters import PRESETS
+
+    base = PRESETS[preset]
+    extra = [
+        f"{k}={'none' if v is None else format(v, 'g')}"
+        for k, v in plant.items()
+        if base.get(k, None) != v and not (v is None and k not in base)
+    ]
+    return (
+        ctx["controller"],
+        ctx["adaptation"],
+        preset + (f" ({', '.join(extra)})" if extra else ""),
+    )
+
+
+def merge_cct(results: list[dict], order: list[str]) -> dict:
+    """One CCT result from several (gain sets run under different plants or
+    adaptation modes, each a `critical_clearing_times` result over the same locations
+    and times): the sets in `order`; top-level "cct", "status", "islands" as the
+    function gives them (a list for one set, a table name -> list for several)."""
+    merged = {k: v for k, v in results[0].items() if k not in ("cct", "status")}
+    merged.pop("islands", None)
+    sets = {}
+    for r in results:
+        sets.update(r["sets"])
+    merged["sets"] = {n: sets[n] for n in order}
+    for key in ("cct", "status", "islands"):
+        merged[key] = (
+            sets[order[0]][key] if len(order) == 1 else {n: sets[n][key] for n in order}
+        )
+    return merged
 
 
 def _fmt(x, spec=".2f") -> str:
@@ -55,30 +122,44 @@ def _fmt(x, spec=".2f") -> str:
     )
 
 
-def compare_table(summaries: dict[str, dict], cct: dict) -> str:
-    """Markdown: one row per gain set (Monte Carlo summary and CCT per location)."""
+def _islands_text(islands) -> str:
+    """Stable islands of clearing durations as '[0.4, 0.45] s'."""
+    return ", ".join(f"[{lo:g}, {hi:g}] s" for lo, hi in islands)
+
+
+def compare_table(
+    summaries: dict[str, dict], cct: dict, contexts: dict[str, dict] | None = None
+) -> str:
+    """Markdown: one row per gain set (its context: controller, adaptation, plant;
+    Monte Carlo summary; CCT (s) per location under the CCT's criterion)."""
     locs = cct["fault_location"]
+    contexts = contexts or {}
     head = (
-        "| gain set | stable % (95% CI) | mean t_s (s) | p95 t_s (s) | "
-        "p95 overshoot (rad) | "
+        "| gain set | controller | adaptation | plant | stable % (95% CI) | "
+        "mean t_s (s) | p95 t_s (s) | p95 overshoot (rad) | "
         + " | ".join(f"CCT @ {lam:g} (s)" for lam in locs)
         + " |"
     )
-    lines = [head, "|" + "---|" * (5 + len(locs))]
+    lines = [head, "|" + "---|" * (8 + len(locs))]
     for name, s in summaries.items():
         lo, hi = s["stable_fraction_ci95"]
         st, ov = s["settling_time"], s["overshoot"]
         r = cct["sets"][name]
         cells = []
-        for v, status in zip(r["cct"], r["status"], strict=True):
+        for v, status, isl in zip(
+            r["cct"], r["status"], r.get("islands", [[]] * len(locs)), strict=True
+        ):
+            again = f" (stable again {_islands_text(isl)})" if isl else ""
             if status == "exceeds_window":
                 cells.append(f"> {cct['window']:.3g}")
             elif status == "unstable_at_min":
-                cells.append("none")
+                cells.append("none" + again)
             else:
-                cells.append(f"{v:.3f}")
+                cells.append(f"{v:.3f}" + (" non-monotone" + again if isl else ""))
+        ctx = context_text(contexts[name]) if name in contexts else ("-", "-", "-")
         lines.append(
-            f"| {name} | {100 * s['stable_fraction']:.1f} ({100 * lo:.1f}-"
+            f"| {name} | {' | '.join(ctx)} | {100 * s['stable_fraction']:.1f} "
+            f"({100 * lo:.1f}-"
             f"{100 * hi:.1f}) | {_fmt(st.get('mean'))} | {_fmt(st.get('p95'))} | "
             f"{_fmt(ov.get('p95'), '.3f')} | " + " | ".join(cells) + " |"
         )
@@ -88,7 +169,7 @@ def compare_table(summaries: dict[str, dict], cct: dict) -> str:
 def plot_compare(rows: dict[str, dict], cct: dict, path) -> None:
     """Left: stable fraction per set; middle: settling-time distributions (stable
     scenarios); right: CCT against fault location per set."""
-    from .plotting import _save, plt
+    from .plotting import _save, plot_islands, plt
 
     names = list(rows)
     fig, axes = plt.subplots(1, 3, figsize=(16, 4.5))
@@ -109,10 +190,14 @@ def plot_compare(rows: dict[str, dict], cct: dict, path) -> None:
         c = [np.nan if v is None else v for v in cct["sets"][n]["cct"]]
         st = np.asarray(cct["sets"][n]["status"])
         c = np.where(st == "exceeds_window", cct["window"], np.asarray(c, dtype=float))
-        axes[2].plot(loc, c, "o-", label=n, ms=4)
+        (line,) = axes[2].plot(loc, c, "o-", label=n, ms=4)
+        plot_islands(axes[2], cct, n, line.get_color())
     axes[2].axhline(cct["window"], color="k", ls="--", lw=1, label="window")
     axes[2].set_xlabel("fault location")
-    axes[2].set_ylabel("CCT (s; at the window line: beyond it)")
+    axes[2].set_ylabel(
+        f"CCT (s), {cct.get('criterion', 'settled')}; window line: beyond it; "
+        "bars: stable again"
+    )
     axes[2].legend(fontsize=8)
     for a in axes:
         a.grid(alpha=0.3)
@@ -120,9 +205,18 @@ def plot_compare(rows: dict[str, dict], cct: dict, path) -> None:
     _save(fig, path)
 
 
-def write_compare(out: Path, summaries, rows, cct) -> None:
-    """compare.md, compare.json and compare.png in `out`."""
-    table = compare_table(summaries, cct)
-    write_text(out / "compare.md", "# Gain sets compared\n\n" + table)
-    write_json(out / "compare.json", {"montecarlo": summaries, "cct": cct})
+def write_compare(out: Path, summaries, rows, cct, contexts=None) -> None:
+    """compare.md, compare.json and compare.png in `out`; `contexts`: name ->
+    `Context.describe()` of each set."""
+    contexts = contexts or {}
+    table = compare_table(summaries, cct, contexts)
+    crit = cct.get("criterion", "settled")
+    write_text(
+        out / "compare.md",
+        f"# Gain sets compared\n\nCCT criterion: {crit}.\n\n" + table,
+    )
+    write_json(
+        out / "compare.json",
+        {"context": contexts, "montecarlo": summaries, "cct": cct},
+    )
     plot_compare(rows, cct, out / "compare.png")

@@ -16,6 +16,7 @@ except ModuleNotFoundError:  # pragma: no cover
     import tomli as tomllib
 
 __all__ = [
+    "read_data",
     "read_table",
     "read_gains",
     "atomic_write",
@@ -25,19 +26,24 @@ __all__ = [
 ]
 
 
-def read_table(path: str | os.PathLike) -> dict[str, float]:
-    """A flat table of name -> number from a `.json` or `.toml` file."""
+def read_data(path: str | os.PathLike):
+    """The parsed content of a `.toml` file, or of a JSON file (any other suffix)."""
     p = Path(path)
     if not p.is_file():
         raise ParameterError(f"file {str(p)!r} does not exist or is not a file")
     text = p.read_text()
     try:
         if p.suffix.lower() == ".toml":
-            data = tomllib.loads(text)
-        else:
-            data = json.loads(text)
+            return tomllib.loads(text)
+        return json.loads(text)
     except (ValueError, tomllib.TOMLDecodeError) as e:
         raise ParameterError(f"file {str(p)!r} is not valid {p.suffix[1:]}: {e}") from e
+
+
+def read_table(path: str | os.PathLike) -> dict[str, float]:
+    """A flat table of name -> number from a `.json` or `.toml` file."""
+    p = Path(path)
+    data = read_data(p)
     if not isinstance(data, dict):
         raise ParameterError(f"file {str(p)!r} must hold a flat table of name = value")
     out = {}
@@ -52,7 +58,13 @@ def read_table(path: str | os.PathLike) -> dict[str, float]:
 
 def read_gains(path: str | os.PathLike, complete: bool = False) -> dict[str, float]:
     """Gain values from a flat JSON/TOML table whose keys are gain names; with
-    `complete`, all nine gains must be there (a gain set for batch studies)."""
+    `complete`, all nine gains must be there (a gain set for batch studies). A gains
+    file with context (schema `smibjax.gains/1`, `gainsfile.py`) gives its gains."""
+    from .gainsfile import is_schema_table
+    from .gainsfile import read as read_gains_file
+
+    if is_schema_table(read_data(path)):
+        return read_gains_file(path, complete=complete).gains
     table = read_table(path)
     unknown = sorted(set(table) - set(GAIN_NAMES))
     if unknown:

@@ -182,10 +182,37 @@ def plot_montecarlo(rows: dict[str, np.ndarray], path, title: str = "") -> None:
     _save(fig, path)
 
 
+def plot_islands(ax, result: dict, label: str, color) -> None:
+    """Mark a gain set's non-monotone CCTs on `ax`: a ring on the CCT and a vertical
+    bar over each later stable island [lo, hi] (s) at its fault location."""
+    r = result["sets"][label]
+    loc = np.asarray(result["fault_location"], dtype=float)
+    first = True
+    for j, isl in enumerate(r.get("islands", [[]] * len(loc))):
+        if not isl:
+            continue
+        if r["cct"][j] is not None:
+            ax.plot(loc[j], r["cct"][j], "o", mfc="none", mec="r", ms=11, mew=1.5)
+        for lo, hi in isl:
+            ax.plot(
+                [loc[j], loc[j]],
+                [lo, hi + 1e-9],
+                "-",
+                color=color,
+                lw=6,
+                alpha=0.45,
+                solid_capstyle="butt",
+                label=f"{label}: stable again" if first else None,
+            )
+            ax.plot([loc[j]] * 2, [lo, hi], "_", color=color, ms=10)
+            first = False
+
+
 def plot_cct(result: dict, path, title: str = "") -> None:
     """CCT against fault location, one line per gain set (`cct` results); a marker on
     the top edge where the CCT exceeds the window, on the bottom where the run is
-    unstable even for the shortest fault."""
+    unstable even for the shortest fault; where stability is not monotone, a red ring
+    on the CCT and bars over the later stable islands of clearing durations (s)."""
     fig, ax = plt.subplots(figsize=(7, 4.3))
     window = result["window"]
     for label, r in result["sets"].items():
@@ -209,12 +236,18 @@ def plot_cct(result: dict, path, title: str = "") -> None:
                 color=line.get_color(),
                 ms=9,
             )
+        plot_islands(ax, result, label, line.get_color())
     ax.axhline(window, color="k", ls="--", lw=1, label="window (reclose - fault)")
     ax.set_xlabel("fault location (fraction of circuit 1 from the SVC bus)")
-    ax.set_ylabel("critical clearing time (s)")
+    ax.set_ylabel(
+        f"critical clearing time (s), criterion {result.get('criterion', 'settled')}"
+    )
     ax.set_ylim(bottom=-0.03 * window, top=1.08 * window)
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
-    ax.set_title(title or "critical clearing time (^: beyond window, v: none)")
+    ax.set_title(
+        title
+        or "critical clearing time (^: beyond window, v: none, ring: non-monotone)"
+    )
     fig.tight_layout()
     _save(fig, path)

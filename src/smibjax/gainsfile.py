@@ -1,0 +1,394 @@
+"""Gains files that carry their context: the one place of the schema.
+
+A gains file written by the tuner (schema `smibjax.gains/1`, JSON or TOML) holds
+the gains beside what they were tuned for:
+
+    {
+      "schema": "smibjax.gains/1",
+      "controller": "aftsc",                 # one of KNOWN_CONTROLLERS
+      "adaptation": "realizable",            # one of KNOWN_ADAPTATIONS
+      "plant": {"preset": "realistic",       # a key of parameters.PRESETS, then any
+                "uf_min": -5, "uf_max": 5,   #   Plant fields that override it (the
+                "ur_min": -1, "ur_max": 1},  #   limits: null = no limit)
+      "options": {},                         # the controller's options (OPTION_CHECKS)
+      "gains": {"beta1": -1.0, ...}          # parameter name -> number
+    }
+
+The old format, a flat table of gain name -> number, still loads: `read` returns it
+with `legacy=True` and the paper's context (controller by alpha: aftsc if alpha < 1,
+asc if alpha = 1; oracle adaptation; paper preset). `resolve` settles each context
+entry as: the command-line flag if given, else the file, else the paper's default,
+and returns the warnings and notes for the caller to print.
+
+This module reads and writes files (like `io.py`, it sits at the edge, outside the
+numerical core); it never prints.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import os
+from collections.abc import Callable
+from pathlib import Path
+
+from .controllers import CONTROLLERS, Synergetic, controller_parameter_names
+from .parameters import GAIN_NAMES, PLANT_NAMES, PRESETS, ParameterError
+
+__all__ = [
+    "SCHEMA",
+    "KNOWN_CONTROLLERS",
+    "KNOWN_ADAPTATIONS",
+    "OPTION_CHECKS",
+    "GainsFile",
+    "Context",
+    "read",
+    "write",
+    "validate",
+    "resolve",
+    "is_schema_table",
+]
+
+SCHEMA = "smibjax.gains/1"
+KNOWN_SCHEMAS = (SCHEMA,)
+# Controllers a gains file may name: the registry (smibjax.controllers.CONTROLLERS).
+KNOWN_CONTROLLERS: tuple[str, ...] = tuple(CONTROLLERS)
+KNOWN_ADAPTATIONS: tuple[str, ...] = ("oracle", "realizable")
+DEFAULTS = {"controller": "aftsc", "adaptation": "oracle", "preset": "paper"}
+# Plant input limits and their "no limit" values (null in a file).
+_LIMITS = {
+    "uf_min": -math.inf,
+    "uf_max": math.inf,
+    "ur_min": -math.inf,
+    "ur_max": math.inf,
+}
+
+
+def _no_options(controller: str, options: dict) -> dict:
+    """The paper's law (aftsc, asc) has no options yet: only {} is allowed."""
+    if options:
+        name = next(iter(options))
+        raise ParameterError(
+            f"option {name!r} is not allowed for controller {controller!r}: it has "
+            "no options"
+        )
+    return {}
+
+
+def synergetic_options(controller: str, options: dict) -> dict:
+    """The options of the paper's law: `projection` ([] or [[th1_min, th1_max],
+    [th2_min, th2_max]], finite, each lo < hi, containing the initial estimates
+    (-0.5, 0)) and `phi_layer` (a finite number >= 0, the evolution law's boundary
+    layer; 0: exact)."""
+    out = {"projection": [], "phi_layer": 0.0}
+    for name, v in options.items():
+        if name not in out:
+            raise ParameterError(
+                f"option {name!r} is not allowed for controller {controller!r}: "
+                "allowed are projection, phi_layer"
+            )
+        out[name] = v
+    box = out["projection"]
+    if box not in ([], None):
+        try:
+            (a, b), (c, d) = box
+            lo, hi = [float(a), float(c)], [float(b), float(d)]
+        except (TypeError, ValueError):
+            raise ParameterError(
+                f"projection = {box!r} is not allowed: must be [[th1_min, th1_max], "
+                "[th2_min, th2_max]] or [] (off)"
+            ) from None
+        if not all(math.isfinite(x) for x in lo + hi) or not (
+            lo[0] < hi[0] and lo[1] < hi[1]
+        ):
+            raise ParameterError(
+                f"projection = {box!r} is not allowed: must be finite and non-empty "
+                "(each min < max)"
+            )
+        if not (lo[0] <= -0.5 <= hi[0] and lo[1] <= 0.0 <= hi[1]):
+            raise ParameterError(
+                f"projection = {box!r} is not allowed: it must contain the initial "
+                "estimates (th1, th2) = (-0.5, 0)"
+            )
+        out["projection"] = [[lo[0], hi[0]], [lo[1], hi[1]]]
+    else:
+        out["projection"] = []
+    layer = out["phi_layer"]
+    if isinstance(layer, bool) or not isinstance(layer, (int, float)) or not (
+        math.isfinite(layer) and layer >= 0
+    ):
+        raise ParameterError(
+            f"phi_layer = {layer!r} is not allowed: must be a finite number >= 0 "
+            "(0: the exact finite-time law)"
+        )
+    out["phi_layer"] = float(layer)
+    return out
+
+
+# controller -> hook(controller, options) -> validated options (raises ParameterError
+# with one line). A controller with options registers its own hook here.
+OPTION_CHECKS: dict[str, Callable[[str, dict], dict]] = {
+    name: synergetic_options if cls is Synergetic else _no_options
+    for name, cls in CONTROLLERS.items()
+}
+
+
+@dataclasses.dataclass(frozen=True)
+class GainsFile:
+    """The content of a gains file. `plant` is {"preset": name, field: value, ...}
+    (values in pu; inf for no limit); `gains` maps parameter names to numbers;
+    `legacy`: read from a flat table (the context is the paper's default)."""
+
+    controller: str
+    adaptation: str
+    plant: dict
+    options: dict
+    gains: dict
+    schema: str = SCHEMA
+    legacy: bool = False
+
+    def to_dict(self) -> dict:
+        """The JSON layout of the schema (an infinite limit written as null: no
+        limit)."""
+        plant = {
+            k: None if isinstance(v, float) and math.isinf(v) else v
+            for k, v in self.plant.items()
+        }
+        return {
+            "schema": self.schema,
+            "controller": self.controller,
+            "adaptation": self.adaptation,
+            "plant": plant,
+            "options": dict(self.options),
+            "gains": {k: float(v) for k, v in self.gains.items()},
+        }
+
+
+@dataclasses.dataclass(frozen=True)
+class Context:
+    """What a gain set runs under, resolved from flags, file and defaults: the
+    controller name, the adaptation mode, the plant preset and the plant overrides
+    (Plant field -> value) of the file, and the controller's options."""
+
+    controller: str
+    adaptation: str
+    preset: str
+    plant: dict
+    options: dict
+
+    def describe(self) -> dict:
+        """{"controller", "adaptation", "plant": {"preset", overrides...}, "options"}
+        for tables and files (infinite limits written as None)."""
+        plant = {"preset": self.preset}
+        plant.update({k: None if math.isinf(v) else v for k, v in self.plant.items()})
+        return {
+            "controller": self.controller,
+            "adaptation": self.adaptation,
+            "plant": plant,
+            "options": dict(self.options),
+        }
+
+
+def _where(path) -> str:
+    return f" in {str(path)!r}" if path is not None else ""
+
+
+def _number(name: str, v, path) -> float:
+    if isinstance(v, bool) or not isinstance(v, (int, float)):
+        raise ParameterError(
+            f"{name} = {v!r}{_where(path)} is not allowed: must be a number"
+        )
+    return float(v)
+
+
+def is_schema_table(data) -> bool:
+    """True when `data` (a parsed file) is a schema gains file, not a flat table."""
+    return isinstance(data, dict) and "schema" in data
+
+
+def validate(data: dict, path=None) -> GainsFile:
+    """A `GainsFile` from a parsed schema table; one-line `ParameterError` naming the
+    value and what is allowed for an unknown schema version, controller, adaptation
+    mode, preset, plant field, gain or option, or a missing or non-numeric entry."""
+    where = _where(path)
+    schema = data.get("schema")
+    if schema not in KNOWN_SCHEMAS:
+        raise ParameterError(
+            f"schema = {schema!r}{where} is not allowed: this version reads "
+            f"{', '.join(KNOWN_SCHEMAS)}"
+        )
+    allowed = ("schema", "controller", "adaptation", "plant", "options", "gains")
+    for key in data:
+        if key not in allowed:
+            raise ParameterError(
+                f"unknown key {key!r}{where}: allowed are {', '.join(allowed)}"
+            )
+    for key in ("controller", "adaptation", "gains"):
+        if key not in data:
+            raise ParameterError(f"{key!r} is missing{where} (schema {schema})")
+    controller = data["controller"]
+    if controller not in KNOWN_CONTROLLERS:
+        raise ParameterError(
+            f"controller = {controller!r}{where} is not allowed: must be one of "
+            f"{', '.join(KNOWN_CONTROLLERS)}"
+        )
+    adaptation = data["adaptation"]
+    if adaptation not in KNOWN_ADAPTATIONS:
+        raise ParameterError(
+            f"adaptation = {adaptation!r}{where} is not allowed: must be one of "
+            f"{', '.join(KNOWN_ADAPTATIONS)}"
+        )
+    plant_in = data.get("plant", {"preset": DEFAULTS["preset"]})
+    if not isinstance(plant_in, dict):
+        raise ParameterError(f"plant{where} must be a table")
+    preset = plant_in.get("preset", DEFAULTS["preset"])
+    if preset not in PRESETS:
+        raise ParameterError(
+            f"plant preset = {preset!r}{where} is not allowed: must be one of "
+            f"{', '.join(PRESETS)}"
+        )
+    plant = {"preset": preset}
+    for k, v in plant_in.items():
+        if k == "preset":
+            continue
+        if k not in PLANT_NAMES:
+            raise ParameterError(
+                f"unknown plant field {k!r}{where}: allowed are preset, "
+                f"{', '.join(PLANT_NAMES)}"
+            )
+        plant[k] = _LIMITS[k] if v is None and k in _LIMITS else _number(k, v, path)
+    options = data.get("options", {})
+    if not isinstance(options, dict):
+        raise ParameterError(f"options{where} must be a table")
+    options = OPTION_CHECKS.get(controller, _no_options)(controller, options)
+    gains_in = data["gains"]
+    if not isinstance(gains_in, dict):
+        raise ParameterError(f"gains{where} must be a table of name = number")
+    gains = {}
+    names = controller_parameter_names(controller)
+    for k, v in gains_in.items():
+        if k not in names:
+            raise ParameterError(
+                f"{k!r}{where} is not a parameter of controller {controller!r}: "
+                f"allowed are {', '.join(names) or '(none)'}"
+            )
+        gains[k] = _number(k, v, path)
+    _check_alpha(controller, gains, path)
+    return GainsFile(controller, adaptation, plant, options, gains, schema)
+
+
+def _check_alpha(controller: str, gains: dict, path) -> None:
+    """aftsc needs alpha < 1, asc alpha = 1 (MODEL.md section 2)."""
+    alpha = gains.get("alpha")
+    if alpha is None:
+        return
+    if controller == "asc" and alpha != 1.0:
+        raise ParameterError(
+            f"alpha = {alpha:g}{_where(path)} is not allowed for controller 'asc': "
+            "must be 1 (alpha < 1 is aftsc)"
+        )
+    if controller == "aftsc" and alpha == 1.0:
+        raise ParameterError(
+            f"alpha = 1{_where(path)} is not allowed for controller 'aftsc': must be "
+            "< 1 (alpha = 1 is asc)"
+        )
+
+
+def read(path: str | os.PathLike, complete: bool = False) -> GainsFile:
+    """A gains file, schema or flat table (`legacy`, with the paper's context: aftsc
+    unless alpha = 1, oracle adaptation, paper preset). With `complete`, every gain of
+    `GAIN_NAMES` must be there (a gain set for batch studies)."""
+    from .io import read_data, read_gains
+
+    p = Path(path)
+    data = read_data(p)
+    if is_schema_table(data):
+        gf = validate(data, p)
+    else:
+        gains = read_gains(p)  # the flat-table checks, one place
+        controller = "asc" if gains.get("alpha") == 1.0 else "aftsc"
+        gf = GainsFile(
+            controller,
+            DEFAULTS["adaptation"],
+            {"preset": DEFAULTS["preset"]},
+            {},
+            gains,
+            legacy=True,
+        )
+    if complete and CONTROLLERS[gf.controller] is Synergetic:
+        required = [g for g in GAIN_NAMES if g not in ("c1", "c2")]
+        missing = [g for g in required if g not in gf.gains]
+        if missing:
+            raise ParameterError(
+                f"gain {missing[0]!r} is missing from {str(p)!r}: a gain set needs "
+                f"all of {', '.join(required)}"
+            )
+    return gf
+
+
+def write(path: str | os.PathLike, gf: GainsFile) -> Path:
+    """Write `gf` as schema JSON (atomically), after validating it."""
+    from .io import write_json
+
+    data = gf.to_dict()
+    validate(data, path)
+    return write_json(path, data)
+
+
+def resolve(
+    gf: GainsFile | None,
+    controller: str | None = None,
+    adaptation: str | None = None,
+    preset: str | None = None,
+    source: str = "the gains file",
+) -> tuple[Context, dict, list[str]]:
+    """(context, gains, messages): each context entry is the flag (`controller`,
+    `adaptation`, `preset`; None = not given) if given, else the file's, else the
+    paper's default. A flag that contradicts the file wins and adds a one-line
+    warning naming both values; where the controller flag wins, the file's alpha is
+    dropped (the controller sets it). A legacy flat file adds a note naming the
+    defaults assumed (a flag replaces an assumed default silently; only its alpha,
+    if any, is a stated controller). `gains` are the file's gain values to apply."""
+    messages: list[str] = []
+    if gf is None:
+        ctx = Context(
+            controller or DEFAULTS["controller"],
+            adaptation or DEFAULTS["adaptation"],
+            preset or DEFAULTS["preset"],
+            {},
+            {},
+        )
+        return ctx, {}, messages
+    file_preset = gf.plant.get("preset", DEFAULTS["preset"])
+    flags = {"controller": controller, "adaptation": adaptation, "preset": preset}
+    given = {"controller": gf.controller, "adaptation": gf.adaptation}
+    given["preset"] = file_preset
+    if gf.legacy:
+        assumed = [f"{k} {given[k]}" for k in given if flags[k] is None]
+        if assumed:
+            messages.append(
+                f"note: {source} is a flat table of gains (no context): assuming "
+                + ", ".join(assumed)
+                + " (the paper's defaults; controller by alpha)"
+            )
+    # a flat file states no context, only alpha (which names the controller)
+    stated = {"controller", "adaptation", "preset"}
+    if gf.legacy:
+        stated = {"controller"} if "alpha" in gf.gains else set()
+    out = {}
+    for key in ("controller", "adaptation", "preset"):
+        flag = flags[key]
+        if flag is not None and flag != given[key] and key in stated:
+            messages.append(
+                f"warning: --{key} {flag} overrides {key} {given[key]} of {source}"
+            )
+        out[key] = flag if flag is not None else given[key]
+    gains = dict(gf.gains)
+    if out["controller"] != gf.controller:
+        gains.pop("alpha", None)
+    plant = {}
+    if out["preset"] == file_preset:
+        plant = {k: v for k, v in gf.plant.items() if k != "preset"}
+    options = gf.options if out["controller"] == gf.controller else {}
+    ctx = Context(out["controller"], out["adaptation"], out["preset"], plant, options)
+    return ctx, gains, messages

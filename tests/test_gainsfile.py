@@ -1,0 +1,212 @@
+"""Gains files that carry their context (schema smibjax.gains/1): the tuner writes
+it, every command uses it by default, a contradicting flag wins with a warning, a flat
+file loads with the paper's defaults and a note, bad context is one line and exit 2."""
+
+import json
+
+import pytest
+
+import smibjax as sj
+from smibjax import gainsfile
+from smibjax.cli import main
+from smibjax.io import read_gains
+
+STABLE = {
+    k: float(getattr(sj.Gains.paper("aftsc", beta1=-1.0, beta2=-1.0), k))
+    for k in sj.GAIN_NAMES
+}
+REALISTIC = {"uf_min": -5.0, "uf_max": 5.0, "ur_min": -1.0, "ur_max": 1.0}
+
+
+@pytest.fixture
+def tuned(tmp_path):
+    """A gains.json as the tuner writes it after tuning under the realistic limits
+    with realizable adaptation (its writer, `_gains_file`, without the tuning)."""
+    from tuning.optimize import _gains_file
+
+    cfg = {"controller": "aftsc", "adaptation": "realizable", "preset": "realistic"}
+    path = tmp_path / "run" / "gains.json"
+    gainsfile.write(path, _gains_file(cfg, sj.Gains(**STABLE)))
+    return path
+
+
+def test_the_tuner_writes_the_documented_schema(tuned):
+    assert json.loads(tuned.read_text()) == {
+        "schema": "smibjax.gains/1",
+        "controller": "aftsc",
+        "adaptation": "realizable",
+        "plant": {"preset": "realistic", **REALISTIC},
+        "options": {},
+        "gains": STABLE,
+    }
+    gf = gainsfile.read(tuned, complete=True)
+    assert gf == gainsfile.GainsFile(
+        "aftsc", "realizable", {"preset": "realistic", **REALISTIC}, {}, STABLE
+    )
+    assert read_gains(tuned, complete=True) == STABLE  # flat readers get the gains
+    # an infinite limit is written as null and read back as no limit
+    wide = gainsfile.GainsFile(
+        "aftsc", "oracle", {"preset": "realistic", "uf_max": float("inf")}, {}, {}
+    )
+    gainsfile.write(tuned, wide)
+    assert json.loads(tuned.read_text())["plant"]["uf_max"] is None
+    assert gainsfile.read(tuned) == wide
+
+
+def test_resolve_flag_then_file_then_paper(tuned):
+    gf = gainsfile.read(tuned)
+    ctx, gains, msgs = gainsfile.resolve(gf)
+    assert (ctx.controller, ctx.adaptation, ctx.preset) == (
+        "aftsc",
+        "realizable",
+        "realistic",
+    )
+    assert ctx.plant == REALISTIC and gains == STABLE and msgs == []
+    ctx, gains, msgs = gainsfile.resolve(gf, "asc", "oracle", "paper", source="F")
+    assert (ctx.controller, ctx.adaptation, ctx.preset) == ("asc", "oracle", "paper")
+    assert ctx.plant == {} and "alpha" not in gains  # asc sets alpha = 1
+    assert msgs == [
+        "warning: --controller asc overrides controller aftsc of F",
+        "warning: --adaptation oracle overrides adaptation realizable of F",
+        "warning: --preset paper overrides preset realistic of F",
+    ]
+    ctx, _, msgs = gainsfile.resolve(None)
+    assert (ctx.controller, ctx.adaptation, ctx.preset) == ("aftsc", "oracle", "paper")
+
+
+def test_flat_file_loads_with_paper_defaults_and_a_note(tmp_path, capsys):
+    flat = tmp_path / "g.json"
+    flat.write_text(json.dumps({**STABLE, "alpha": 1.0}))
+    gf = gainsfile.read(flat)
+    assert gf.legacy and gf.controller == "asc" and gf.adaptation == "oracle"
+    ctx, _, msgs = gainsfile.resolve(gf, adaptation="realizable", source="F")
+    assert msgs == [
+        "note: F is a flat table of gains (no context): assuming controller asc, "
+        "preset paper (the paper's defaults; controller by alpha)"
+    ]
+    out = tmp_path / "r.npz"
+    argv = ["simulate", "--gains", str(flat), "--t-end", "1", "--out", str(out)]
+    assert main(argv) == 0
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("smibjax: note: --gains")
+    assert "assuming controller asc, adaptation oracle, preset paper" in err[0]
+
+
+def _context_of(npz):
+    import numpy as np
+
+    return json.loads(str(np.load(npz)["meta"]))
+
+
+def test_round_trip_every_command_uses_the_context(
+    tuned, tmp_path, capsys, monkeypatch
+):
+    """Tuned under realistic + realizable, then simulate, montecarlo, cct and compare
+    with no flags run under that context (before: oracle on the paper plant)."""
+    out = tmp_path / "sim.npz"
+    argv = ["simulate", "--gains", str(tuned), "--t-end", "1", "--out", str(out)]
+    assert main(argv) == 0
+    meta = _context_of(out)
+    assert meta["adaptation"] == "realizable"
+    assert meta["plant"]["uf_max"] == 5.0 and meta["plant"]["ur_min"] == -1.0
+    assert meta["context"]["plant"]["preset"] == "realistic"
+    assert capsys.readouterr().err == ""  # nothing to warn about
+
+    mc = tmp_path / "mc"
+    argv = ["montecarlo", "--gains", str(tuned), "--n", "2", "--chunk", "2"]
+    assert main([*argv, "--t-end", "3", "--out", str(mc)]) == 0
+    spec = json.loads((mc / "run.json").read_text())["spec"]
+    assert spec["adaptation"] == "realizable" and spec["plant"]["uf_max"] == 5.0
+    assert spec["gains"] == STABLE
+
+    # the CCT engine is replaced by a recorder: what matters is what reaches it
+    seen = []
+
+    def fake_cct(sets, plant, **kw):
+        seen.append((dict(sets), plant, kw))
+        names = list(sets)
+        per = {"cct": [0.3], "status": ["ok"], "islands": [[]]}
+        res = {"fault_location": [0.5], "fault_time": 0.5, "reclose_time": 2.0}
+        res.update(window=1.5, tol=0.01, criterion=kw["criterion"], t_end=3.0)
+        res["sets"] = {n: dict(per) for n in names}
+        for k in per:
+            res[k] = per[k] if len(names) == 1 else {n: per[k] for n in names}
+        return res
+
+    import smibjax.cct
+
+    monkeypatch.setattr(smibjax.cct, "critical_clearing_times", fake_cct)
+    cct = tmp_path / "c.json"
+    argv = ["cct", "--gains", str(tuned), "--fault-location", "0.5", "--out", str(cct)]
+    assert main(argv) == 0
+    sets, plant, kw = seen.pop()
+    assert kw["adaptation"] == "realizable" and float(plant.uf_max) == 5.0
+    assert list(sets) == ["aftsc"] and float(sets["aftsc"].beta1) == -1.0
+    assert json.loads(cct.read_text())["context"]["aftsc"]["adaptation"] == (
+        "realizable"
+    )
+
+    cmp = tmp_path / "cmp"
+    argv = ["compare", "--gains", str(tuned), "--gains", "stable", "--n", "2"]
+    argv += ["--chunk", "2", "--t-end", "3", "--fault-location", "0.5"]
+    assert main([*argv, "--out", str(cmp)]) == 0
+    table = (cmp / "compare.md").read_text()
+    assert "| run | aftsc | realizable | realistic |" in table
+    assert "| stable | aftsc | oracle | paper |" in table
+    data = json.loads((cmp / "compare.json").read_text())
+    assert data["context"]["run"]["adaptation"] == "realizable"
+    assert data["context"]["run"]["plant"]["uf_max"] == 5.0
+    spec = json.loads((cmp / "run" / "run.json").read_text())["spec"]
+    assert spec["adaptation"] == "realizable" and spec["plant"]["uf_max"] == 5.0
+    spec = json.loads((cmp / "stable" / "run.json").read_text())["spec"]
+    assert spec["adaptation"] == "oracle"
+    assert float(spec["plant"]["uf_max"]) == float("inf")  # the paper plant
+    # one CCT sweep per context: each set under its own plant and adaptation
+    by_set = {n: (float(p.uf_max), kw["adaptation"]) for s, p, kw in seen for n in s}
+    assert by_set == {"run": (5.0, "realizable"), "stable": (float("inf"), "oracle")}
+    err = capsys.readouterr().err
+    assert "warning" not in err and "note" not in err
+
+
+def test_a_contradicting_flag_wins_with_one_warning(tuned, tmp_path, capsys):
+    out = tmp_path / "sim.npz"
+    argv = ["simulate", "--gains", str(tuned), "--t-end", "1", "--out", str(out)]
+    assert main([*argv, "--adaptation", "oracle", "--set", "uf_max=3"]) == 0
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == [
+        f"smibjax: warning: --adaptation oracle overrides adaptation realizable of "
+        f"--gains {tuned}",
+        "smibjax: warning: --set uf_max=3 overrides uf_max = 5 of the gains file",
+    ]
+    meta = _context_of(out)
+    assert meta["adaptation"] == "oracle" and meta["plant"]["uf_max"] == 3.0
+    assert meta["plant"]["uf_min"] == -5.0  # the rest of the file's plant stays
+
+
+@pytest.mark.parametrize(
+    "change, match",
+    [
+        ({"controller": "pid"}, "controller = 'pid' in .* must be one of aftsc, asc"),
+        ({"adaptation": "magic"}, "adaptation = 'magic' in .* oracle, realizable"),
+        ({"plant": {"preset": "x"}}, "plant preset = 'x' in .* paper, realistic"),
+        ({"schema": "smibjax.gains/9"}, "schema = 'smibjax.gains/9' in .* reads"),
+        ({"options": {"c1": 2}}, "option 'c1' is not allowed for controller 'aftsc'"),
+        ({"controller": "asc"}, "alpha = 0.714286 in .* not allowed for .*'asc'"),
+        ({"plant": {"preset": "paper", "speed": 1}}, "unknown plant field 'speed'"),
+    ],
+)
+@pytest.mark.parametrize("command", ["simulate", "montecarlo", "cct", "compare"])
+def test_bad_context_is_one_line_exit_2(
+    tuned, tmp_path, capsys, change, match, command
+):
+    import re
+
+    data = {**json.loads(tuned.read_text()), **change}
+    bad = tmp_path / "bad.json"
+    bad.write_text(json.dumps(data))
+    out = tmp_path / "out"
+    assert main([command, "--gains", str(bad), "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and err.startswith("smibjax: error:")
+    assert re.search(match, err), err
+    assert not out.exists()
