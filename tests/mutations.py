@@ -373,6 +373,14 @@ def run_one(m: Mutant, cache: Path, timeout: float, verbose: bool) -> dict:
         }
 
 
+def _save(out: Path, results: dict) -> None:
+    """Merge into the JSON of earlier runs (a run of some mutants keeps the others')."""
+    old = json.loads(out.read_text()) if out.is_file() else {}
+    names = {m.name for m in MUTANTS}
+    merged = {k: v for k, v in {**old, **results}.items() if k in names}
+    out.write_text(json.dumps(merged, indent=1) + "\n")
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--only", nargs="+", metavar="NAME", help="names or patterns")
@@ -398,16 +406,13 @@ def main(argv=None) -> int:
         r = run_one(m, cache, args.timeout, args.verbose)
         print(f" {r['status']} ({r.get('seconds', 0)} s)", file=sys.stderr)
         results[m.name] = {**r, "file": m.file, "select": list(m.select), "why": m.why}
+        _save(Path(args.json), results)  # after each mutant: a long run can be cut
     print("\n| mutant | file | result | failing test |\n|---|---|---|---|")
     for name, r in results.items():
         first = (r.get("failed") or ["-"])[0]
         print(f"| {name} | {r['file']} | {r['status']} | {first} |")
     killed = sum(r["status"] == "killed" for r in results.values())
     print(f"\n{len(results)} mutants, {killed} killed")
-    out = Path(args.json)
-    old = json.loads(out.read_text()) if out.is_file() else {}
-    old = {k: v for k, v in old.items() if k in {m.name for m in MUTANTS}}
-    out.write_text(json.dumps({**old, **results}, indent=1) + "\n")
     return 0
 
 

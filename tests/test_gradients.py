@@ -137,7 +137,9 @@ def test_state_sensitivity_to_clearing_time_across_reclosure(solver):
         w = weights(linear=np.eye(N)[i])
         got.append(float(value_and_grad(p, w, solver)[1]["t_clear"]))
         want.append(central_difference(p, "t_clear", w, solver, 1e-5))
-    tol = 1e-4 if solver == "adaptive" else 1e-5  # adaptive: FD noise of order rtol/h
+    # adaptive: FD noise of order rtol/h, measured up to 1e-4 (without RigidSteps: 1.7%
+    # at t = 2.5 s)
+    tol = 1e-3 if solver == "adaptive" else 1e-5
     np.testing.assert_allclose(got, want, rtol=tol, atol=1e-7)
 
 
