@@ -64,3 +64,13 @@ def test_metrics_of_stable_and_unstable_runs(jax_runs, paper_run):
     assert float(m.effort_uf) == pytest.approx(trap, rel=0.1)
     mu = metrics(paper_run)
     assert not bool(mu.stable) and float(mu.settling_delta) == np.inf
+
+
+def test_a_run_that_spent_its_step_budget_is_not_stable(jax_runs):
+    """Even with delta inside its band at the end: the run did not reach t_end."""
+    import equinox as eqx
+
+    tr = jax_runs["aftsc"]
+    assert bool(metrics(tr).stable)
+    cut = eqx.tree_at(lambda x: x.budget_exhausted, tr, jnp.asarray(True))
+    assert not bool(metrics(cut).stable)
