@@ -158,3 +158,46 @@ def test_a_spent_step_budget_is_neither_stable_nor_lost():
         assert np.all(np.isfinite(np.asarray(leaf, dtype=float)))
     full = sj.simulate(sj.Gains.paper("aftsc", **STABLE), t_end=6.0)
     assert not bool(full.budget_exhausted) and bool(full.stable)
+
+
+def _transfer_reactance(plant, x2, bf, b):
+    """Xs - X1 X2 (B + Bf) of a stage (X2, Bf), MODEL.md section 1."""
+    x1 = plant.Xdp + plant.XT
+    return x1 + x2 - x1 * x2 * (b + bf)
+
+
+@pytest.mark.parametrize("margin, ok", [(-1e-6, True), (1e-6, False)])
+def test_domain_thresholds_of_e_prime_and_transfer_reactance(margin, ok):
+    """`healthy` declares a loss of synchronism where E' falls to E_MIN or the
+    transfer reactance of the stage in force (and of the controller's nominal
+    network) falls to X_MIN: checked on each side of each threshold, in each stage of a
+    bolted fault at the middle of circuit 1 (X2 = 2 XL, Bf = -1/XL in the fault)."""
+    from smibjax.closed_loop import E_MIN, X_MIN, ClosedLoop, healthy
+
+    plant, op = sj.Plant(), sj.OperatingPoint()
+    fault = sj.Fault()  # 0.5 / 0.7 / 2.0 s, lam = 0.5, Xf = 0
+    loop = ClosedLoop(sj.Gains(), fault, plant, op)
+    xl = float(plant.XL)
+    x1 = float(plant.Xdp + plant.XT)
+    nominal = (x1 + xl - X_MIN) / (x1 * xl)  # B at which the nominal Xs hits X_MIN
+    stages = {0.2: (xl, 0.0), 0.6: (2 * xl, -1 / xl), 1.0: (2 * xl, 0.0)}
+    for t, (x2, bf) in stages.items():
+        b_edge = min((x1 + x2 - X_MIN) / (x1 * x2) - bf, nominal)
+        assert _transfer_reactance(plant, x2, bf, b_edge) >= X_MIN - 1e-12
+        y = jnp.array([0.5, 0.0, 1.0, b_edge + margin, 0.0, 0.0, 0.0, 0.0])
+        assert bool(healthy(jnp.asarray(t), y, loop)) == ok, t
+    y = jnp.array([0.5, 0.0, E_MIN - margin, 0.0, 0.0, 0.0, 0.0, 0.0])
+    assert bool(healthy(jnp.asarray(0.2), y, loop)) == ok
+
+
+def test_loss_of_synchronism_through_the_reactance_threshold():
+    """SVC set point B0 = 6.5 pu: the law's u_r (+174 pu at t = 0) drives B up, and the
+    nominal transfer reactance Xs - X1 XL B reaches X_MIN at B = 8.32 pu within a few
+    ms, before the fault: the run is stopped as lost_sync there, with delta and E'
+    far from their own limits (measured t_stop = 6.1 ms)."""
+    tr = sj.simulate(sj.Gains.paper("asc", **STABLE), plant=sj.Plant(B0=6.5), t_end=1.5)
+    assert bool(tr.lost_sync) and not bool(tr.stable)
+    assert 0.0 < float(tr.t_stop) < 0.02
+    assert float(tr.u_r[0]) > 100.0
+    np.testing.assert_allclose(np.asarray(tr.delta), 0.4964, atol=1e-3)
+    np.testing.assert_allclose(np.asarray(tr.E), float(tr.E[0]), atol=1e-2)

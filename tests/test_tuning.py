@@ -132,12 +132,42 @@ def test_training_gradient_matches_finite_differences(start):
         assert float(grad[name]) == pytest.approx(fd, rel=2e-3, abs=1e-6), name
 
 
-def test_resume_gives_the_same_result_as_an_uninterrupted_run(tmp_path):
+def test_resume_trains_only_the_remaining_steps(tmp_path, monkeypatch):
+    """A resume loads the checkpoint: it trains the 2 steps left of 4 (counted at the
+    training step itself), keeps the 2 rows written before the interruption byte for
+    byte (their wall-clock `seconds` too: a restart would recompute them), and ends
+    where an uninterrupted run ends (the run is deterministic, so that alone could not
+    tell a resume from a restart)."""
+    import tuning.optimize as optimize
+
+    trained = []
+    engine = optimize._engine
+
+    def counting_engine(cfg, setup):
+        step, validate = engine(cfg, setup)
+
+        def counted(raw, faults):
+            trained.append(1)
+            return step(raw, faults)
+
+        return counted, validate
+
+    monkeypatch.setattr(optimize, "_engine", counting_engine)
     cfg = tiny_config()
     full = run(cfg, tmp_path / "a", quiet=True)
+    assert len(trained) == 4
     part = run(cfg, tmp_path / "b", quiet=True, stop_after=2)  # "killed" after step 2
     assert part["step"] == 2 and (tmp_path / "b" / "checkpoint.pkl").is_file()
+    assert len(trained) == 6
+    rows_before = (tmp_path / "b" / "history.csv").read_bytes().splitlines()
+    history_before = copy.deepcopy(part["history"])
+    assert len(rows_before) == 3  # header and steps 1, 2
     resumed = run(cfg, tmp_path / "b", resume=True, quiet=True)
+    assert len(trained) == 8  # only steps 3 and 4
+    assert [r["step"] for r in resumed["history"]] == [1, 2, 3, 4]
+    assert resumed["history"][:2] == history_before
+    rows_after = (tmp_path / "b" / "history.csv").read_bytes().splitlines()
+    assert rows_after[:3] == rows_before and len(rows_after) == 5
     for k in full["raw"]:
         assert float(resumed["raw"][k]) == float(full["raw"][k])
     assert [r["loss"] for r in resumed["history"]] == [
@@ -220,6 +250,7 @@ def test_kill_9_then_resume_matches_an_uninterrupted_run(tmp_path):
     proc.send_signal(signal.SIGKILL)
     proc.wait()
     assert not (b / "gains.json").exists()  # it really was cut short
+    before_kill = (b / "history.csv").read_bytes().splitlines()
     subprocess.run(cli("--out", str(b), "--resume"), check=True, cwd=ROOT, env=env)
     assert json.loads((b / "gains.json").read_text()) == json.loads(
         (tmp_path / "a" / "gains.json").read_text()
@@ -228,6 +259,10 @@ def test_kill_9_then_resume_matches_an_uninterrupted_run(tmp_path):
     b_hist = (b / "history.csv").read_text().splitlines()
     strip = lambda rows: [r.rsplit(",", 1)[0] for r in rows]  # drop the seconds column
     assert strip(a_hist) == strip(b_hist)
+    # the rows written before the kill are kept byte for byte (seconds included)
+    assert (b / "history.csv").read_bytes().splitlines()[: len(before_kill)] == (
+        before_kill
+    )
 
 
 class _Identity:

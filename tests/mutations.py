@@ -1,0 +1,420 @@
+"""Deliberate breakages, one at a time, against the tests that must catch them.
+
+    python tests/mutations.py                 # every mutant (tens of minutes on 2 cores)
+    python tests/mutations.py --only NAME ... # some (names or fnmatch patterns)
+    python tests/mutations.py --list          # the list, nothing run
+
+Each mutant is (name, file, exact old text, new text, pytest selection, why). The script
+copies the repository to a temporary directory (without .git and caches), replaces the
+old text by the new one in the copy (the old text must occur exactly once: a mutant whose
+text has moved is reported `stale`, never silently skipped), runs the selection there with
+PYTHONPATH pointing to the copy's src (it checks that `smibjax` is imported from the copy)
+and records `killed` (pytest exit status 1: a test failed), `survived` (status 0) or
+`error` (any other status: collection error, no such test). The real tree is never
+touched. It prints a table and writes tests/mutations.json (--json to change).
+
+Not part of .ci/run and not collected by pytest (the file name does not start with
+test_). The compiled-program cache of all copies is shared in $TMPDIR/smibjax-mutants-cache
+(the mutated programs hash differently, so a mutant never reuses a stale program).
+"""
+
+from __future__ import annotations
+
+import argparse
+import fnmatch
+import json
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+from typing import NamedTuple
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+class Mutant(NamedTuple):
+    name: str
+    file: str  # relative to the repository root
+    old: str  # exact text, must occur once
+    new: str
+    select: tuple[str, ...]  # pytest node ids / paths that must fail
+    why: str
+
+
+GRAD = "tests/test_gradients.py"
+SIM_REF = (
+    "tests/test_simulate.py::test_trajectory_matches_independent_scipy_integration"
+)
+SIM_OTHER = "tests/test_simulate.py::test_other_scenarios_match_scipy"
+
+MUTANTS = [
+    # -- the stop-gradient on step lengths (_stepping.py) --------------------------
+    Mutant(
+        "rigidsteps-removed",
+        "src/smibjax/simulate.py",
+        "RigidSteps(dfx.PIDController(rtol=rtol, atol=atol, norm=_rms_dynamic)),",
+        "dfx.PIDController(rtol=rtol, atol=atol, norm=_rms_dynamic),",
+        (f"{GRAD}::test_state_sensitivity_to_clearing_time_across_reclosure",),
+        "the adaptive controller without RigidSteps: d/dt_clear wrong after t_reclose",
+    ),
+    Mutant(
+        "rigidsteps-no-stop-gradient",
+        "src/smibjax/_stepping.py",
+        "next_t1 = next_t0 + lax.stop_gradient(next_t1 - next_t0)",
+        "next_t1 = next_t1",
+        (f"{GRAD}::test_state_sensitivity_to_clearing_time_across_reclosure",),
+        "RigidSteps kept but its stop_gradient on proposed step lengths removed",
+    ),
+    # -- tuner resume ----------------------------------------------------------------
+    Mutant(
+        "resume-restarts",
+        "tuning/optimize.py",
+        "    if resume:\n        state = load_checkpoint(out, opt, raw0)",
+        "    if False:\n        state = load_checkpoint(out, opt, raw0)",
+        ("tests/test_tuning.py::test_resume_trains_only_the_remaining_steps",),
+        "--resume ignores the checkpoint and trains from step 0 (deterministic run: "
+        "same gains and losses)",
+    ),
+    # -- control law (controller.py) ------------------------------------------------
+    Mutant(
+        "uf-law-sign",
+        "src/smibjax/controller.py",
+        "- spow(-phi1 / gains.T1, a)) / (b1 * g[0, 0])",
+        "+ spow(-phi1 / gains.T1, a)) / (b1 * g[0, 0])",
+        (SIM_REF,),
+        "u_f: the synergetic term -spow(-phi1/T1) with its sign flipped",
+    ),
+    Mutant(
+        "ur-law-sign",
+        "src/smibjax/controller.py",
+        "- spow(-phi2 / gains.T2, a)) / (",
+        "+ spow(-phi2 / gains.T2, a)) / (",
+        (SIM_REF,),
+        "u_r: the synergetic term -spow(-phi2/T2) with its sign flipped",
+    ),
+    Mutant(
+        "uf-drift-sign",
+        "src/smibjax/controller.py",
+        "v1 = -(b1 * f[0] + common",
+        "v1 = -(b1 * f[0] - common",
+        (SIM_REF,),
+        "u_f: the x2 + xdot2_hat term with its sign flipped",
+    ),
+    Mutant(
+        "th1-law-sign",
+        "src/smibjax/controller.py",
+        "gains.gamma1 * (o1 + out.x[1] * s)",
+        "gains.gamma1 * (o1 - out.x[1] * s)",
+        (SIM_REF,),
+        "adaptation of th1 (eq. 22): the phi term with its sign flipped",
+    ),
+    Mutant(
+        "th2-law-sign",
+        "src/smibjax/controller.py",
+        "gains.gamma2 * (o2 + s)",
+        "gains.gamma2 * (o2 - s)",
+        (SIM_REF,),
+        "adaptation of th2 (eq. 22): the phi term with its sign flipped",
+    ),
+    Mutant(
+        "k1-term-sign",
+        "src/smibjax/controller.py",
+        "spow(-plant.D - th_hat[0], a)",
+        "spow(th_hat[0] + plant.D, a)",
+        (SIM_REF,),
+        "adaptation of th1: the oracle pull k1 (theta1 - th1) with its sign flipped",
+    ),
+    Mutant(
+        "k2-term-sign",
+        "src/smibjax/controller.py",
+        "spow(plant.Pm - th_hat[1], a)",
+        "spow(th_hat[1] - plant.Pm, a)",
+        (SIM_REF,),
+        "adaptation of th2: the oracle pull k2 (theta2 - th2) with its sign flipped",
+    ),
+    # -- network stages (network.py) ------------------------------------------------
+    Mutant(
+        "stage-post-and-restored-swapped",
+        "src/smibjax/network.py",
+        "jnp.where(in_fault, b, jnp.where(in_post, c, a))",
+        "jnp.where(in_fault, b, jnp.where(in_post, a, c))",
+        ("tests/test_network.py", SIM_REF),
+        "post-fault and restored networks exchanged",
+    ),
+    Mutant(
+        "stage-fault-until-reclose",
+        "src/smibjax/network.py",
+        "in_fault = (t >= fault.t_fault) & (t < fault.t_clear)",
+        "in_fault = (t >= fault.t_fault) & (t < fault.t_reclose)",
+        ("tests/test_network.py", SIM_REF),
+        "the fault is not cleared at t_clear (stays until t_reclose)",
+    ),
+    Mutant(
+        "stage-post-never-ends",
+        "src/smibjax/network.py",
+        "in_post = (t >= fault.t_clear) & (t < fault.t_reclose)",
+        "in_post = t >= fault.t_clear",
+        ("tests/test_network.py", SIM_REF),
+        "the line is never reclosed",
+    ),
+    # -- losses.py ---------------------------------------------------------------------
+    Mutant(
+        "soft-settling-ignores-band",
+        "src/smibjax/losses.py",
+        "s = jax.nn.sigmoid((remaining - band) / width) * after",
+        "s = jax.nn.sigmoid(remaining / width) * after",
+        ("tests/test_losses.py",),
+        "soft settling time counts every sample after t_from, in the band or not",
+    ),
+    Mutant(
+        "soft-settling-ignores-stop",
+        "src/smibjax/losses.py",
+        "dev = jnp.where(t > t_stop, 10 * band, dev)",
+        "dev = dev",
+        ("tests/test_losses.py",),
+        "a run that stopped (lost synchronism) could count as settled",
+    ),
+    Mutant(
+        "overshoot-loss-from-zero",
+        "src/smibjax/losses.py",
+        "z = jnp.where(traj.t >= traj.t_fault, dev / temperature, -jnp.inf)",
+        "z = dev / temperature",
+        ("tests/test_losses.py",),
+        "soft overshoot also over the pre-fault samples (which sit at equilibrium: "
+        "expected to change nothing measurable)",
+    ),
+    # -- metrics.py -------------------------------------------------------------------
+    Mutant(
+        "settling-no-interpolation",
+        "src/smibjax/metrics.py",
+        "t_cross = t[i] + frac * (t[i + 1] - t[i])",
+        "t_cross = t[i]",
+        ("tests/test_metrics.py",),
+        "exit from the band at the last sample outside, not interpolated",
+    ),
+    Mutant(
+        "settling-ignores-t-from",
+        "src/smibjax/metrics.py",
+        "outside = (dev > band) & (t >= t_from)",
+        "outside = dev > band",
+        ("tests/test_metrics.py",),
+        "samples before fault inception count",
+    ),
+    Mutant(
+        "settling-never-inf",
+        "src/smibjax/metrics.py",
+        "return jnp.where(last == n - 1, jnp.inf, jnp.maximum(settled, 0.0))",
+        "return jnp.maximum(settled, 0.0)",
+        ("tests/test_metrics.py",),
+        "a signal still outside its band at t_end reported as settled",
+    ),
+    Mutant(
+        "stable-ignores-budget",
+        "src/smibjax/metrics.py",
+        "traj.lost_sync | traj.budget_exhausted,",
+        "traj.lost_sync,",
+        ("tests/test_metrics.py::test_a_run_that_spent_its_step_budget_is_not_stable",),
+        "a run that ran out of solver steps reported stable",
+    ),
+    Mutant(
+        "overshoot-band-from-zero",
+        "src/smibjax/metrics.py",
+        "return jnp.max(jnp.where(traj.t >= traj.t_fault, dev, 0.0))",
+        "return jnp.max(dev)",
+        ("tests/test_metrics.py",),
+        "overshoot over the pre-fault samples too",
+    ),
+    # -- domain of the model (closed_loop.py) ---------------------------------------
+    Mutant(
+        "e-min-check-removed",
+        "src/smibjax/closed_loop.py",
+        "        & (E > E_MIN)\n",
+        "",
+        (
+            "tests/test_simulate.py::test_domain_thresholds_of_e_prime_and_transfer_reactance",
+        ),
+        "E' falling to 0 is not a loss of synchronism",
+    ),
+    Mutant(
+        "reactance-threshold-fault-shunt-sign",
+        "src/smibjax/closed_loop.py",
+        "return (xs - X_MIN) / (plant.X1 * stage.X2) - stage.Bf",
+        "return (xs - X_MIN) / (plant.X1 * stage.X2) + stage.Bf",
+        (
+            "tests/test_simulate.py::test_domain_thresholds_of_e_prime_and_transfer_reactance",
+        ),
+        "the fault's shunt susceptance enters the reactance threshold with the wrong sign",
+    ),
+    Mutant(
+        "reactance-check-removed",
+        "src/smibjax/closed_loop.py",
+        "        & (B < b_lim)\n",
+        "",
+        (
+            "tests/test_simulate.py::test_domain_thresholds_of_e_prime_and_transfer_reactance",
+            "tests/test_simulate.py::test_loss_of_synchronism_through_the_reactance_threshold",
+        ),
+        "no transfer-reactance check: the run integrates through the singularity",
+    ),
+    # -- atomic writes (io.py) ------------------------------------------------------------
+    Mutant(
+        "io-write-in-place",
+        "src/smibjax/io.py",
+        "        write(tmp)\n        os.replace(tmp, p)",
+        "        write(str(p))\n        os.replace(tmp, p)",
+        ("tests/test_io.py",),
+        "the writer writes onto the target itself (a crash leaves half a file)",
+    ),
+    # -- the fixed-step scan (_fixed.py) ------------------------------------------------
+    Mutant(
+        "fixed-stage-at-step-end",
+        "src/smibjax/_fixed.py",
+        "0.5 * (ta_ + tb_),",
+        "tb_,",
+        ("tests/test_fixed.py",),
+        "a step's network stage taken at its end, not its midpoint",
+    ),
+    Mutant(
+        "fixed-no-hold-after-stop",
+        "src/smibjax/_fixed.py",
+        "y1 = jnp.where(alive, y1, y)\n",
+        "\n",
+        ("tests/test_fixed.py",),
+        "steps after a loss of synchronism keep integrating",
+    ),
+    Mutant(
+        "fixed-sample-off-by-one",
+        "src/smibjax/_fixed.py",
+        "samples = ys[index]",
+        "samples = ys[jnp.minimum(index + 1, ys.shape[0] - 1)]",
+        ("tests/test_fixed.py",),
+        "each sample read one grid point late",
+    ),
+    Mutant(
+        "fixed-switch-not-a-jump",
+        "src/smibjax/_fixed.py",
+        "jump = jnp.concatenate([is_switch[:-1], jnp.zeros(pad, bool)])",
+        "jump = jnp.zeros(grid.shape[0] - 1 + pad, bool)",
+        ("tests/test_fixed.py",),
+        "Tsit5's FSAL state reused across a switch (made_jump never set)",
+    ),
+]
+
+
+def _copy(dst: Path) -> None:
+    ignore = shutil.ignore_patterns(
+        ".git",
+        ".jax_cache",
+        "__pycache__",
+        ".pytest_cache",
+        ".ruff_cache",
+        "*.egg-info",
+        "runs",
+        "results",
+        ".venv",
+    )
+    shutil.copytree(ROOT, dst, ignore=ignore, symlinks=True)
+
+
+def run_one(m: Mutant, cache: Path, timeout: float, verbose: bool) -> dict:
+    with tempfile.TemporaryDirectory(prefix=f"smibjax-mutant-{m.name}-") as tmp:
+        copy = Path(tmp) / "repo"
+        _copy(copy)
+        target = copy / m.file
+        text = target.read_text()
+        count = text.count(m.old)
+        if count != 1:
+            return {"status": "stale", "detail": f"old text found {count} times"}
+        target.write_text(text.replace(m.old, m.new))
+        (copy / ".jax_cache").symlink_to(cache, target_is_directory=True)
+        env = {
+            **os.environ,
+            "PYTHONPATH": f"{copy / 'src'}{os.pathsep}{copy}",
+            "SMIBJAX_CACHE_DIR": str(cache),
+            "JAX_PLATFORMS": "cpu",
+            "MPLBACKEND": "Agg",
+        }
+        where = subprocess.run(
+            [sys.executable, "-c", "import smibjax; print(smibjax.__file__)"],
+            env=env,
+            cwd=copy,
+            capture_output=True,
+            text=True,
+        ).stdout.strip()
+        if not where.startswith(str(copy)):
+            return {"status": "error", "detail": f"smibjax imported from {where}"}
+        cmd = [sys.executable, "-m", "pytest", "-x", "-q", "-p", "no:cacheprovider"]
+        t0 = time.perf_counter()
+        try:
+            p = subprocess.run(
+                [*cmd, *m.select],
+                env=env,
+                cwd=copy,
+                capture_output=True,
+                text=True,
+                timeout=timeout,
+            )
+        except subprocess.TimeoutExpired:
+            return {"status": "timeout", "seconds": time.perf_counter() - t0}
+        seconds = time.perf_counter() - t0
+        status = {0: "survived", 1: "killed"}.get(p.returncode, "error")
+        failed = [ln for ln in p.stdout.splitlines() if ln.startswith("FAILED")]
+        if verbose or status == "error":
+            print(p.stdout[-3000:], p.stderr[-2000:], sep="\n", file=sys.stderr)
+        return {
+            "status": status,
+            "returncode": p.returncode,
+            "seconds": round(seconds, 1),
+            "failed": [ln.split(" - ")[0].removeprefix("FAILED ") for ln in failed],
+            "summary": (p.stdout.strip().splitlines() or [""])[-1],
+        }
+
+
+def _save(out: Path, results: dict) -> None:
+    """Merge into the JSON of earlier runs (a run of some mutants keeps the others')."""
+    old = json.loads(out.read_text()) if out.is_file() else {}
+    names = {m.name for m in MUTANTS}
+    merged = {k: v for k, v in {**old, **results}.items() if k in names}
+    out.write_text(json.dumps(merged, indent=1) + "\n")
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--only", nargs="+", metavar="NAME", help="names or patterns")
+    ap.add_argument("--list", action="store_true", help="list the mutants and exit")
+    ap.add_argument("--json", default=str(ROOT / "tests" / "mutations.json"))
+    ap.add_argument("--timeout", type=float, default=1800.0, help="s per mutant")
+    ap.add_argument("-v", "--verbose", action="store_true", help="show pytest output")
+    args = ap.parse_args(argv)
+    chosen = [
+        m
+        for m in MUTANTS
+        if not args.only or any(fnmatch.fnmatch(m.name, p) for p in args.only)
+    ]
+    if args.list or not chosen:
+        for m in MUTANTS:
+            print(f"{m.name:34} {m.file:28} {' '.join(m.select)}")
+        return 0 if chosen or args.list else 2
+    cache = Path(tempfile.gettempdir()) / "smibjax-mutants-cache"
+    cache.mkdir(exist_ok=True)
+    results = {}
+    for m in chosen:
+        print(f"{m.name} ...", end="", flush=True, file=sys.stderr)
+        r = run_one(m, cache, args.timeout, args.verbose)
+        print(f" {r['status']} ({r.get('seconds', 0)} s)", file=sys.stderr)
+        results[m.name] = {**r, "file": m.file, "select": list(m.select), "why": m.why}
+        _save(Path(args.json), results)  # after each mutant: a long run can be cut
+    print("\n| mutant | file | result | failing test |\n|---|---|---|---|")
+    for name, r in results.items():
+        first = (r.get("failed") or ["-"])[0]
+        print(f"| {name} | {r['file']} | {r['status']} | {first} |")
+    killed = sum(r["status"] == "killed" for r in results.values())
+    print(f"\n{len(results)} mutants, {killed} killed")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
