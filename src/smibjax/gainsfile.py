@@ -114,8 +114,10 @@ def synergetic_options(controller: str, options: dict) -> dict:
     else:
         out["projection"] = []
     layer = out["phi_layer"]
-    if isinstance(layer, bool) or not isinstance(layer, (int, float)) or not (
-        math.isfinite(layer) and layer >= 0
+    if (
+        isinstance(layer, bool)
+        or not isinstance(layer, (int, float))
+        or not (math.isfinite(layer) and layer >= 0)
     ):
         raise ParameterError(
             f"phi_layer = {layer!r} is not allowed: must be a finite number >= 0 "

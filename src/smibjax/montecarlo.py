@@ -27,6 +27,7 @@ import numpy as np
 
 from ._validate import require_count, require_positive
 from .controller import static_alpha
+from .controllers import CONTROLLERS, EstimateBox, Synergetic, make_controller
 from .io import write_json, write_npz, write_text
 from .metrics import metrics
 from .parallel import device_map
@@ -68,8 +69,21 @@ COLUMNS = (
     "peak_uf",  # max |u_f| (pu)
     "peak_ur",  # max |u_r| (pu)
     "peak_B",  # max |B| (pu)
+    "peak_uf_cmd",  # max |u_f| commanded, before the limits (pu)
+    "peak_ur_cmd",  # max |u_r| commanded, before the limits (pu)
+    "limit_time_uf",  # fraction of the run with u_f on a limit
+    "limit_time_ur",  # fraction of the run with u_r on a limit
+    "tv_uf",  # total variation of the applied u_f (pu): chatter
+    "tv_ur",  # total variation of the applied u_r (pu)
+    "Vt_min",  # range of the SVC-bus voltage (pu)
+    "Vt_max",
+    "B_min",  # range of the SVC susceptance (pu)
+    "B_max",
+    "E_min",  # range of E' (pu)
+    "E_max",
     "num_steps",  # accepted solver steps
 )
+_PHYSICS = COLUMNS[COLUMNS.index("peak_uf_cmd") : COLUMNS.index("num_steps")]
 _INT_COLUMNS = ("index", "stable", "lost_sync", "budget_exhausted", "num_steps")
 
 
@@ -77,8 +91,11 @@ _INT_COLUMNS = ("index", "stable", "lost_sync", "budget_exhausted", "num_steps")
 class MonteCarloSpec:
     """Everything that determines the rows of a Monte Carlo run.
 
-    `gains`, `plant`, `op`, `init` are flat name -> value tables (a gain set from
-    `Gains`, plant overrides, operating point, initial estimates); `dist` is a
+    `gains`, `plant`, `op`, `init` are flat name -> value tables (the controller's
+    parameters, plant overrides, operating point, initial estimates); `controller`
+    is a registry name (`smibjax.controllers`; "" : the paper's law, AFTSC or ASC by
+    alpha) and `options` its options (the paper's law: projection, phi_layer, as in a
+    gains file); `dist` is a
     `ScenarioDistribution.to_dict()`. The chunk size is part of the spec only because
     chunk files are named by index; the rows do not depend on it.
     """
@@ -94,6 +111,8 @@ class MonteCarloSpec:
         default_factory=lambda: ScenarioDistribution().to_dict()
     )
     adaptation: str = "oracle"
+    controller: str = ""
+    options: dict = dataclasses.field(default_factory=dict)
     t_end: float = 10.0
     dt_save: float = 0.01
     rtol: float = 1e-6
@@ -124,14 +143,44 @@ class MonteCarloSpec:
     def distribution(self) -> ScenarioDistribution:
         return ScenarioDistribution.from_dict(self.dist)
 
-    def parameters(self) -> tuple[Gains, Plant, OperatingPoint, InitialEstimates]:
-        """The parameter sets (values may be given as numbers or 'inf' strings)."""
+    def synergetic(self) -> bool:
+        """True for the paper's law (AFTSC / ASC)."""
+        return self.controller == "" or CONTROLLERS[self.controller] is Synergetic
+
+    def controller_of(self, params, alpha_one: bool = False):
+        """The controller with parameter set `params` (`parameters()[0]`)."""
+        if not self.synergetic():
+            return params
+        box = self.options.get("projection") or []
+        return Synergetic(
+            static_alpha(params, alpha_one),
+            oracle=self.adaptation == "oracle",
+            projection=None if not box else EstimateBox(*zip(*box, strict=True)),
+            phi_layer=float(self.options.get("phi_layer", 0.0)),
+        )
+
+    def parameters(self) -> tuple:
+        """The parameter sets (values may be given as numbers or 'inf' strings): the
+        controller's (`Gains` for the paper's law), Plant, OperatingPoint,
+        InitialEstimates."""
 
         def f(d):
             return {k: float(v) for k, v in d.items()}
 
+        if self.controller not in ("", *CONTROLLERS):
+            raise ParameterError(
+                f"controller = {self.controller!r} is not allowed: must be one of "
+                f"{', '.join(CONTROLLERS)}"
+            )
+        if self.synergetic():
+            from .gainsfile import synergetic_options
+
+            synergetic_options(self.controller or "aftsc", dict(self.options))
+            params = Gains(**f(self.gains))
+        else:
+            params = make_controller(self.controller, f(self.gains))
         return (
-            Gains(**f(self.gains)),
+            params,
             Plant(**f(self.plant)),
             OperatingPoint(**f(self.op)),
             InitialEstimates(**f(self.init)),
@@ -167,6 +216,7 @@ def _engine(
     fixed: str,
     draw: bool,
     alpha_one: bool = False,
+    controller: str = "{}",
 ):
     """The jitted batch function for one solver configuration and one (plant,
     operating point, initial estimates), compiled once per process and batch shape,
@@ -182,16 +232,17 @@ def _engine(
     plant = Plant(**{k: float(v) for k, v in tables["plant"].items()})
     op = OperatingPoint(**{k: float(v) for k, v in tables["op"].items()})
     init = InitialEstimates(**{k: float(v) for k, v in tables["init"].items()})
+    how = MonteCarloSpec(n=1, adaptation=adaptation, **json.loads(controller))
 
     @eqx.filter_jit
     def run(gains, scenarios):
         faults, D, Pm = scenarios
-        gains = static_alpha(gains, alpha_one)
+        ctrl = how.controller_of(gains, alpha_one)
 
         def one(fault, d, pm):
             p = eqx.tree_at(lambda q: (q.D, q.Pm), plant, (d, pm)) if draw else plant
             tr = simulate(
-                gains,
+                ctrl,
                 fault,
                 p,
                 op=op,
@@ -218,6 +269,7 @@ def _engine(
                 "peak_uf": m.peak_uf,
                 "peak_ur": m.peak_ur,
                 "peak_B": m.peak_B,
+                **{k: getattr(m, k) for k in _PHYSICS},
                 "num_steps": tr.num_steps,
             }
 
@@ -262,7 +314,10 @@ def compute_chunk(spec: MonteCarloSpec, k: int, devices=None) -> dict[str, np.nd
         spec.max_steps,
         fixed,
         draw,
-        float(params[0].alpha) == 1.0,
+        spec.synergetic() and float(params[0].alpha) == 1.0,
+        json.dumps(
+            {"controller": spec.controller, "options": spec.options}, sort_keys=True
+        ),
     )
     out = device_map(fn, params[0], scen, devices)
     m = stop - start
@@ -331,10 +386,31 @@ def summarize(rows: dict[str, np.ndarray]) -> dict:
         "settling_time": _quantiles(rows["settling_time"][stable]),
         "settling_Vt": _quantiles(rows["settling_Vt"][stable]),
         "overshoot": _quantiles(rows["overshoot"][stable]),
+        "physics": _physics(rows),
         "num_steps": {
             "mean": float(rows["num_steps"].mean()),
             "max": int(rows["num_steps"].max()),
         },
+    }
+
+
+def _physics(rows) -> dict:
+    """What the inputs and the plant did over all scenarios (pu): the largest commanded
+    inputs, mean time on a limit and total variation of each applied input, the ranges
+    of Vt, B and E'. Rows from before these columns existed give {}."""
+    if "peak_uf_cmd" not in rows:
+        return {}
+    r = {k: np.asarray(rows[k], dtype=float) for k in _PHYSICS}
+    return {
+        "peak_uf_cmd_max": float(r["peak_uf_cmd"].max()),
+        "peak_ur_cmd_max": float(r["peak_ur_cmd"].max()),
+        "limit_time_uf_mean": float(r["limit_time_uf"].mean()),
+        "limit_time_ur_mean": float(r["limit_time_ur"].mean()),
+        "tv_uf_mean": float(r["tv_uf"].mean()),
+        "tv_ur_mean": float(r["tv_ur"].mean()),
+        "Vt_range": [float(r["Vt_min"].min()), float(r["Vt_max"].max())],
+        "B_range": [float(r["B_min"].min()), float(r["B_max"].max())],
+        "E_range": [float(r["E_min"].min()), float(r["E_max"].max())],
     }
 
 
@@ -370,6 +446,22 @@ def summary_markdown(summary: dict, title: str = "Monte Carlo") -> str:
             continue
         cols = [q[c] for c in ("mean", "p05", "p50", "p90", "p95", "p99", "max")]
         lines.append(f"| {label} | " + " | ".join(f"{v:.3f}" for v in cols) + " |")
+    ph = s.get("physics") or {}
+    if ph:
+        lines += [
+            "",
+            "Physics, all scenarios (pu):",
+            "",
+            f"- peak commanded u_f / u_r (before limits): {ph['peak_uf_cmd_max']:.4g} "
+            f"/ {ph['peak_ur_cmd_max']:.4g}",
+            f"- mean fraction of time on a limit, u_f / u_r: "
+            f"{ph['limit_time_uf_mean']:.3f} / {ph['limit_time_ur_mean']:.3f}",
+            f"- mean total variation (chatter) of u_f / u_r: {ph['tv_uf_mean']:.4g} / "
+            f"{ph['tv_ur_mean']:.4g}",
+            f"- ranges: Vt {ph['Vt_range'][0]:.3f}..{ph['Vt_range'][1]:.3f}, "
+            f"B {ph['B_range'][0]:.3f}..{ph['B_range'][1]:.3f}, "
+            f"E' {ph['E_range'][0]:.3f}..{ph['E_range'][1]:.3f}",
+        ]
     return "\n".join(lines) + "\n"
 
 
