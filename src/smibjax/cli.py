@@ -194,7 +194,10 @@ def _cmd_simulate(args) -> int:
             "fault": {k: float(getattr(fault, k)) for k in fault.__dataclass_fields__},
             "plant": {k: float(getattr(plant, k)) for k in plant.__dataclass_fields__},
             "adaptation": args.adaptation,
-            "metrics": metrics_dict(m),
+            "metrics": {  # NaN (not reached) as null
+                k: None if isinstance(v, float) and math.isnan(v) else v
+                for k, v in metrics_dict(m).items()
+            },
         }
         arrays["meta"] = np.array(json.dumps(meta, allow_nan=True))
         out = Path(args.out)
