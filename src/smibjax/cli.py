@@ -22,10 +22,23 @@ class CLIError(Exception):
 
 
 class _Parser(argparse.ArgumentParser):
-    def error(self, message):  # one line, no usage dump
-        raise CLIError(f"{message} (see `python -m smibjax {self._sub} --help`)")
-
     _sub = ""
+
+    def error(self, message):  # one line, no usage dump
+        where = f"python -m smibjax {self._sub} --help".replace("  ", " ")
+        raise CLIError(f"{message} (see `{where}`)")
+
+    def parse_args(self, args=None, namespace=None):
+        """As argparse's, but arguments left over are reported with the help of the
+        subcommand they were given to (argparse reports them at the top level)."""
+        ns, extras = self.parse_known_args(args, namespace)
+        if extras:
+            sub = getattr(ns, "command", None) or ""
+            where = f"python -m smibjax {sub} --help".replace("  ", " ")
+            raise CLIError(
+                f"unrecognized arguments: {' '.join(extras)} (see `{where}`)"
+            )
+        return ns
 
 
 def _add_common(p: argparse.ArgumentParser) -> None:
@@ -56,6 +69,15 @@ def _add_common(p: argparse.ArgumentParser) -> None:
         help="oracle (paper, uses the true theta) or realizable (k1=k2=0)",
     )
     _add_max_steps(p)
+
+
+def _add_force(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--force",
+        action="store_true",
+        help="replace existing output files (without it an existing file is refused "
+        "before any work)",
+    )
 
 
 def _add_max_steps(p: argparse.ArgumentParser) -> None:
@@ -162,6 +184,7 @@ def _cmd_simulate(args) -> int:
     from .report import format_summary, metrics_dict
     from .simulate import simulate
 
+    out, plot = _simulate_outputs(args)
     gains, plant, op, init = build_parameters(
         args.controller, args.preset, args.gains, _parse_sets(args.set)
     )
@@ -200,20 +223,49 @@ def _cmd_simulate(args) -> int:
             },
         }
         arrays["meta"] = np.array(json.dumps(meta, allow_nan=True))
-        out = Path(args.out)
-        if out.suffix != ".npz":
-            out = out.with_name(out.name + ".npz")
         write_npz(out, arrays)
         print(f"wrote {out}")
-    if args.plot:
+    if plot:
         plot_trajectory(
             arrays,
-            args.plot,
+            plot,
             _title(gains, fault, args),
             (-float(plant.D), float(plant.Pm)),
         )
-        print(f"wrote {args.plot}")
+        print(f"wrote {plot}")
     return 0
+
+
+def _simulate_outputs(args) -> tuple[Path | None, Path | None]:
+    """simulate's --out (.npz appended when missing) and --plot paths, refused before
+    the run when they exist (without --force), name a folder, the same file, or (for
+    --plot) a format that cannot be written."""
+    from .io import check_new_file
+    from .plotting import check_plot_path
+
+    out = plot = None
+    if args.out:
+        out = Path(args.out)
+        if out.suffix != ".npz":
+            out = out.with_name(out.name + ".npz")
+        out = check_new_file(out, args.force, "--out")
+    if args.plot:
+        plot = check_new_file(check_plot_path(args.plot), args.force, "--plot")
+        if out is not None and plot.resolve() == out.resolve():
+            raise CLIError(
+                f"--plot {str(plot)!r} is not allowed: must differ from --out"
+            )
+    if args.dt_save > 0 and args.t_end > 0 and math.isfinite(args.t_end / args.dt_save):
+        ratio = args.t_end / args.dt_save
+        if abs(ratio - round(ratio)) > 1e-9 * max(1.0, ratio):
+            n = max(int(round(ratio)), 1)
+            print(
+                f"smibjax: warning: --dt-save {args.dt_save:g} does not divide --t-end "
+                f"{args.t_end:g}: sampling {n} equal intervals of "
+                f"{args.t_end / n:.6g} s instead",
+                file=sys.stderr,
+            )
+    return out, plot
 
 
 def _title(gains, fault, args) -> str:
@@ -228,7 +280,7 @@ def _title(gains, fault, args) -> str:
 
 def _read_dist(path):
     """A scenario distribution from a flat TOML/JSON table of name = [lo, hi]."""
-    from .io import tomllib
+    from .io import read_utf8, tomllib
     from .parameters import ParameterError
     from .scenarios import ScenarioDistribution
 
@@ -237,12 +289,9 @@ def _read_dist(path):
     p = Path(path)
     if not p.is_file():
         raise ParameterError(f"--dist file {str(p)!r} does not exist or is not a file")
+    text = read_utf8(p)
     try:
-        data = (
-            tomllib.loads(p.read_text())
-            if p.suffix.lower() == ".toml"
-            else json.loads(p.read_text())
-        )
+        data = tomllib.loads(text) if p.suffix.lower() == ".toml" else json.loads(text)
     except ValueError as e:  # TOMLDecodeError and JSONDecodeError are ValueErrors
         raise ParameterError(f"--dist file {str(p)!r} is not valid: {e}") from e
     if not isinstance(data, dict):
@@ -439,17 +488,24 @@ def _run_cct(args, sets, plant, op, init) -> dict:
 
 
 def _cmd_cct(args) -> int:
-    from .io import write_json
+    from .io import check_new_file, write_json
     from .plotting import plot_cct
 
     _check_cct_args(args)
+    out = png = None
+    if args.out:
+        out = check_new_file(args.out, args.force, "--out")
+        png = check_new_file(out.with_suffix(".png"), args.force, "--out (its plot)")
+        if png == out:
+            raise CLIError(
+                f"--out {str(out)!r} is not allowed: must not end in .png (the plot "
+                "is written beside it as .png)"
+            )
     sets, (plant, op, init) = _cct_sets(args)
     res = _run_cct(args, sets, plant, op, init)
     _print_cct(res)
-    if args.out:
-        out = Path(args.out)
+    if out is not None:
         write_json(out, res)
-        png = out.with_suffix(".png")
         plot_cct(res, png)
         print(f"wrote {out} and {png}")
     return 0
@@ -538,7 +594,15 @@ def _add_cct_options(p, with_reactance=True) -> None:
 def _cmd_reproduce(args) -> int:
     from .reproduce import reproduce
 
-    reproduce(Path(args.out), preset=args.preset, t_end=args.t_end)
+    out = Path(args.out)
+    if out.exists() and not out.is_dir():
+        raise CLIError(f"--out {str(out)!r} is not allowed: must be a folder")
+    if out.is_dir() and any(out.iterdir()) and not args.force:
+        raise CLIError(
+            f"--out {str(out)!r} is not allowed: must be a new or empty folder (it "
+            "holds files; add --force to replace the ones reproduce writes)"
+        )
+    reproduce(out, preset=args.preset, t_end=args.t_end)
     return 0
 
 
@@ -550,6 +614,9 @@ def _parser() -> argparse.ArgumentParser:
             "control."
         ),
     )
+    from . import __version__
+
+    top.add_argument("--version", action="version", version=f"smibjax {__version__}")
     sub = top.add_subparsers(dest="command", required=True, parser_class=_Parser)
     s = sub.add_parser("simulate", help="one closed-loop run: summary, npz, plot")
     s._sub = "simulate"
@@ -573,13 +640,19 @@ def _parser() -> argparse.ArgumentParser:
         help="sampling interval of the output (s), default 0.01",
     )
     s.add_argument("--out", metavar="FILE.npz", help="write the trajectory")
-    s.add_argument("--plot", metavar="FILE.png", help="plot every signal")
+    s.add_argument(
+        "--plot",
+        metavar="FILE.png",
+        help="plot every signal, in the format of the suffix (.png, .pdf, .svg, ...)",
+    )
+    _add_force(s)
     s.set_defaults(func=_cmd_simulate)
     r = sub.add_parser("reproduce", help="the paper's section 4 case, figures + table")
     r._sub = "reproduce"
     r.add_argument("--out", default="results/reproduce", help="output folder")
     r.add_argument("--preset", choices=["paper", "realistic"], default="paper")
     r.add_argument("--t-end", type=float, default=10.0, help="horizon (s)")
+    _add_force(r)
     r.set_defaults(func=_cmd_reproduce)
 
     m = sub.add_parser(
@@ -604,6 +677,7 @@ def _parser() -> argparse.ArgumentParser:
     _add_tolerances(c)
     c.add_argument("--t-end", type=float, default=10.0, help="horizon (s)")
     c.add_argument("--out", metavar="FILE.json", help="write the CCTs (+ a .png plot)")
+    _add_force(c)
     c.set_defaults(func=_cmd_cct)
 
     k = sub.add_parser(
