@@ -202,11 +202,36 @@ def test_simulate_refuses_what_it_cannot_answer(argv, needle, tmp_path, capsys):
     assert not out.exists()
 
 
-def test_cct_and_compare_refuse_a_fault_outside_the_horizon(capsys):
+def test_cct_and_compare_refuse_a_fault_outside_the_horizon(tmp_path, capsys):
     assert main(["cct", "--t-end", "1.5", "--fault-location", "0.5"]) == 2
-    _one_line(capsys, "reclose time = 2 s is not allowed: must be before t_end")
-    assert main(["compare", "--t-end", "1.0", "--n", "2"]) == 2
+    _one_line(capsys, "--reclose-time 2 is not allowed: must be before --t-end 1.5")
+    out = tmp_path / "cmp"
+    argv = ["compare", "--t-end", "1.0", "--n", "2", "--out", str(out)]
+    assert main([*argv, "--reclose-time", "0.9"]) == 2  # CCT fits, Monte Carlo not
     _one_line(capsys, "t_end = 1 is not allowed: must be > 1.25 s")
+    assert not out.exists()
+
+
+@pytest.mark.parametrize(
+    "argv, needle",
+    [
+        (["--tol", "1e-300"], "--tol 1e-300 is not allowed: must be within [1e-09, "),
+        (["--tol", "nan"], "--tol nan is not allowed"),
+        (["--fault-location", "0.5", "nan"], "--fault-location nan is not allowed"),
+        (["--reclose-time", "inf"], "--reclose-time inf is not allowed"),
+    ],
+)
+def test_cct_and_compare_options_are_checked_before_any_work(
+    argv, needle, tmp_path, capsys
+):
+    assert main(["cct", *argv, "--out", str(tmp_path / "c.json")]) == 2
+    _one_line(capsys, needle)
+    assert main(["compare", "--n", "2", *argv, "--out", str(tmp_path / "k")]) == 2
+    _one_line(capsys, needle)
+    assert list(tmp_path.iterdir()) == []
+    if "--fault-location" not in argv:
+        assert main(["cct", "--fault-reactance", "inf", *argv[:0]]) == 2
+        _one_line(capsys, "Fault.Xf = inf is not allowed")
 
 
 @pytest.mark.parametrize("suffix", [".toml", ".json"])

@@ -38,6 +38,8 @@ from .simulate import simulate
 
 __all__ = ["critical_clearing_times"]
 
+MIN_TOL = 1e-9  # s: a finer bisection is below the solver's accuracy
+
 
 def _stable_batch_fn(
     plant,
@@ -132,10 +134,12 @@ def critical_clearing_times(
             f"reclose time = {reclose_time:g} s is not allowed: must be before "
             f"t_end = {t_end:g} s"
         )
-    if not 0 < tol < window:
+    if not MIN_TOL <= tol < window:
         raise ParameterError(
-            f"tol = {tol:g} is not allowed: must be within (0, {window:g}) s"
+            f"tol = {tol:g} is not allowed: must be within [{MIN_TOL:g}, {window:g}) s"
         )
+    for duration in (tol, window):  # the lanes' extremes, before any work
+        Fault(fault_time, fault_time + duration, reclose_time, locs[0], fault_reactance)
     if not gain_sets:
         raise ParameterError("give at least one gain set")
     names = list(gain_sets)

@@ -434,8 +434,32 @@ def _check_cct_args(args) -> None:
             f"--reclose-time {args.reclose_time:g} is not allowed: must be after "
             f"--fault-time {args.fault_time:g}"
         )
-    if not args.tol > 0:
-        raise CLIError(f"--tol {args.tol:g} is not allowed: must be > 0")
+    from .cct import MIN_TOL
+    from .parameters import Fault
+
+    window = args.reclose_time - args.fault_time
+    if not MIN_TOL <= args.tol < window:
+        raise CLIError(
+            f"--tol {args.tol:g} is not allowed: must be within [{MIN_TOL:g}, "
+            f"{window:g}) s"
+        )
+    if not args.reclose_time < args.t_end:
+        raise CLIError(
+            f"--reclose-time {args.reclose_time:g} is not allowed: must be before "
+            f"--t-end {args.t_end:g}"
+        )
+    for lam in args.fault_location:  # every lane's fault, before any work
+        if not 0 < lam < 1:
+            raise CLIError(
+                f"--fault-location {lam:g} is not allowed: must be within (0, 1)"
+            )
+        Fault(
+            args.fault_time,
+            args.fault_time + args.tol,
+            args.reclose_time,
+            lam,
+            getattr(args, "fault_reactance", 0.0),
+        )
 
 
 def _print_cct(res: dict) -> None:
