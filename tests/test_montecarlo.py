@@ -350,6 +350,7 @@ def test_runs_that_spend_the_step_budget_are_counted_apart(tmp_path, capsys):
         (dict(seed=2**32), r"seed = 4294967296 is not allowed"),
         (dict(seed=1.5), r"seed = 1.5 is not allowed"),
         (dict(t_end=1.1), r"t_end = 1.1 is not allowed: must be > 1.25 s"),
+        (dict(t_end=1e308), r"t_end / dt_save = 1e\+308 / 0.01 is not allowed"),
         (
             dict(t_end=3.0, dist={"t_fault": [2.0, 5.0]}),
             r"t_end = 3 is not allowed: must be > 5.25 s",

@@ -85,6 +85,19 @@ def require_in_horizon(t_fault, t_clear, t_end: float) -> None:
     )
 
 
+MAX_SAMPLES = 1_000_000  # samples of one run: ~200 MB of outputs
+
+
+def require_samples(t_end: float, dt_save: float) -> None:
+    """Raise `ParameterError` unless t_end / dt_save (the samples of a run) is at most
+    `MAX_SAMPLES`."""
+    if not t_end / dt_save <= MAX_SAMPLES:
+        raise ParameterError(
+            f"t_end / dt_save = {t_end:g} / {dt_save:g} is not allowed: must be <= "
+            f"{MAX_SAMPLES:g} samples a run (dt_save >= {t_end / MAX_SAMPLES:g} s)"
+        )
+
+
 def require_count(name: str, v) -> None:
     """Raise `ParameterError` unless `v` is an integer >= 1 (not a bool)."""
     if isinstance(v, bool) or not isinstance(v, numbers.Integral) or v < 1:

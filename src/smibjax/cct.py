@@ -22,7 +22,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ._validate import require_count, require_positive
+from ._validate import require_count, require_positive, require_samples
 from .controller import static_alpha
 from .metrics import metrics
 from .parallel import device_map
@@ -138,6 +138,8 @@ def critical_clearing_times(
         raise ParameterError(
             f"tol = {tol:g} is not allowed: must be within [{MIN_TOL:g}, {window:g}) s"
         )
+    require_positive("t_end", t_end)
+    require_samples(t_end, 0.01)  # simulate's default sampling, as the lanes run
     for duration in (tol, window):  # the lanes' extremes, before any work
         Fault(fault_time, fault_time + duration, reclose_time, locs[0], fault_reactance)
     if not gain_sets:

@@ -91,8 +91,8 @@ def _add_max_steps(p: argparse.ArgumentParser) -> None:
 
 
 def _tolerance(text: str) -> float:
-    """A solver tolerance: a finite number > 0 (checked while parsing, before any
-    work starts)."""
+    """A solver tolerance (or a horizon, a sampling interval): a finite number > 0
+    (checked while parsing, before any work starts)."""
     try:
         v = float(text)
     except ValueError:
@@ -587,7 +587,7 @@ def _add_mc_options(p, n_default: int) -> None:
         default=256,
         help="scenarios per batch (default 256: measured fastest on 2 cores)",
     )
-    p.add_argument("--t-end", type=float, default=10.0, help="horizon (s)")
+    p.add_argument("--t-end", type=_tolerance, default=10.0, help="horizon (s)")
     p.add_argument(
         "--resume", action="store_true", help="finish the run in --out after a stop"
     )
@@ -612,7 +612,9 @@ def _add_cct_options(p, with_reactance=True) -> None:
     p.add_argument("--reclose-time", type=float, default=2.0, help="t_reclose (s)")
     if with_reactance:
         p.add_argument("--fault-reactance", type=float, default=0.0, help="Xf (pu)")
-    p.add_argument("--tol", type=float, default=1e-3, help="bisection tolerance (s)")
+    p.add_argument(
+        "--tol", type=_tolerance, default=1e-3, help="bisection tolerance (s)"
+    )
 
 
 def _cmd_reproduce(args) -> int:
@@ -656,10 +658,10 @@ def _parser() -> argparse.ArgumentParser:
         help="lam in (0, 1), from the SVC bus",
     )
     s.add_argument("--fault-reactance", type=float, default=0.0, help="Xf >= 0 (pu)")
-    s.add_argument("--t-end", type=float, default=10.0, help="horizon (s)")
+    s.add_argument("--t-end", type=_tolerance, default=10.0, help="horizon (s)")
     s.add_argument(
         "--dt-save",
-        type=float,
+        type=_tolerance,
         default=0.01,
         help="sampling interval of the output (s), default 0.01",
     )
@@ -675,7 +677,7 @@ def _parser() -> argparse.ArgumentParser:
     r._sub = "reproduce"
     r.add_argument("--out", default="results/reproduce", help="output folder")
     r.add_argument("--preset", choices=["paper", "realistic"], default="paper")
-    r.add_argument("--t-end", type=float, default=10.0, help="horizon (s)")
+    r.add_argument("--t-end", type=_tolerance, default=10.0, help="horizon (s)")
     _add_force(r)
     r.set_defaults(func=_cmd_reproduce)
 
@@ -699,7 +701,7 @@ def _parser() -> argparse.ArgumentParser:
             a.help = "one or more of aftsc, asc (default aftsc)"
     _add_cct_options(c)
     _add_tolerances(c)
-    c.add_argument("--t-end", type=float, default=10.0, help="horizon (s)")
+    c.add_argument("--t-end", type=_tolerance, default=10.0, help="horizon (s)")
     c.add_argument("--out", metavar="FILE.json", help="write the CCTs (+ a .png plot)")
     _add_force(c)
     c.set_defaults(func=_cmd_cct)

@@ -26,7 +26,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ._validate import require_count, require_positive
+from ._validate import require_count, require_positive, require_samples
 from .controller import static_alpha
 from .io import write_json, write_npz, write_text
 from .metrics import metrics
@@ -111,6 +111,7 @@ class MonteCarloSpec:
             )
         for name in ("t_end", "dt_save", "rtol", "atol"):
             require_positive(name, getattr(self, name))
+        require_samples(self.t_end, self.dt_save)
         if (
             isinstance(self.seed, bool)
             or not isinstance(self.seed, numbers.Integral)

@@ -37,7 +37,13 @@ from jaxtyping import Array, Bool, Float, Int
 
 from ._fixed import solve_fixed
 from ._stepping import RigidSteps
-from ._validate import is_concrete, require_count, require_in_horizon, require_positive
+from ._validate import (
+    is_concrete,
+    require_count,
+    require_in_horizon,
+    require_positive,
+    require_samples,
+)
 from .closed_loop import (
     N_DYNAMIC,
     ClosedLoop,
@@ -60,7 +66,6 @@ from .plant import apply_limits, equilibrium_state, terminal_voltage
 __all__ = ["Trajectory", "simulate", "is_stable", "DEFAULT_DELTA_BAND"]
 
 DEFAULT_DELTA_BAND = 0.01  # rad, MODEL.md section 4
-MAX_SAMPLES = 10_000_000  # samples of one run (t_end / dt_save): ~1 GB of outputs
 
 Series = Float[Array, "*batch n"]
 Scalar = Float[Array, "*batch"]
@@ -337,11 +342,7 @@ def simulate(
     if max_steps is None:
         max_steps = 50_000
     require_count("max_steps", max_steps)
-    if t_end / dt_save > MAX_SAMPLES:
-        raise ParameterError(
-            f"dt_save = {dt_save:g} is not allowed: must be >= t_end / {MAX_SAMPLES:g} "
-            f"= {t_end / MAX_SAMPLES:g} (at most {MAX_SAMPLES:g} samples)"
-        )
+    require_samples(t_end, dt_save)
     if is_concrete(fault.t_fault, fault.t_clear):
         require_in_horizon(fault.t_fault, fault.t_clear, t_end)
     return _simulate(
