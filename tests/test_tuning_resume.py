@@ -131,3 +131,24 @@ def test_wall_time_is_summed_over_sessions(tmp_path):
     assert saved[1]["interrupted"] is True and saved[2]["seconds"] == 5.0
     # a fresh start forgets earlier sessions
     assert SessionClock(out, resume=False).finish(2.0) == (2.0, 1)
+
+
+@pytest.mark.parametrize(
+    "change, match",
+    [
+        (lambda c: c["optimizer"].update(learning_rate=float("inf")), "learning_rate"),
+        (lambda c: c["train"].update(dt=float("nan")), "train.dt = nan"),
+        (lambda c: c["loss"].update(effort=float("-inf")), "loss.effort = -inf"),
+        (lambda c: c["gains"]["bounds"].update(T1=[0.002, float("inf")]), "T1 = inf"),
+        (lambda c: c.update(seed=-1), r"seed = -1 is not allowed"),
+        (lambda c: c["validation"].update(seed=2**32), r"validation.seed = 4294967296"),
+    ],
+)
+def test_config_numbers_must_be_finite_and_seeds_in_range(change, match):
+    """Issue 16, class 1 (a config): inf/NaN anywhere in a tuning config is refused."""
+    from tuning.config import check_config
+
+    cfg = load_config()
+    change(cfg)
+    with pytest.raises(sj.ParameterError, match=match):
+        check_config(cfg)
