@@ -360,3 +360,6 @@ def test_dt_save_that_does_not_divide_the_horizon_says_what_it_did(capsys):
     assert "--dt-save 0.03 does not divide --t-end 2: sampling 67 equal" in err
     assert main(["simulate", "--t-end", "2", "--dt-save", "0.02"]) == 0
     assert "warning" not in capsys.readouterr().err
+    # a refusal stays one line: no warning before it
+    assert main(["simulate", "--t-end", "2", "--dt-save", "0.03", "--set", "H=0"]) == 2
+    _one_line(capsys, "Plant.H = 0 is not allowed")

@@ -208,6 +208,7 @@ def _cmd_simulate(args) -> int:
         atol=args.atol,
         max_steps=args.max_steps,
     )
+    _warn_dt_save(args)
     m = metrics(traj)
     print(format_summary(gains, fault, plant, traj, m, args))
     arrays = trajectory_arrays(traj)
@@ -253,19 +254,24 @@ def _simulate_outputs(args) -> tuple[Path | None, Path | None]:
         plot = check_new_file(check_plot_path(args.plot), args.force, "--plot")
         if out is not None and plot.resolve() == out.resolve():
             raise CLIError(
-                f"--plot {str(plot)!r} is not allowed: must differ from --out"
-            )
-    if args.dt_save > 0 and args.t_end > 0 and math.isfinite(args.t_end / args.dt_save):
-        ratio = args.t_end / args.dt_save
-        if abs(ratio - round(ratio)) > 1e-9 * max(1.0, ratio):
-            n = max(int(round(ratio)), 1)
-            print(
-                f"smibjax: warning: --dt-save {args.dt_save:g} does not divide --t-end "
-                f"{args.t_end:g}: sampling {n} equal intervals of "
-                f"{args.t_end / n:.6g} s instead",
-                file=sys.stderr,
+                f"--plot = {str(plot)!r} is not allowed: must differ from --out"
             )
     return out, plot
+
+
+def _warn_dt_save(args) -> None:
+    """Say so when --dt-save does not divide --t-end: the run samples the nearest
+    number of equal intervals instead (printed after the run succeeded, so that a
+    refusal stays one line)."""
+    ratio = args.t_end / args.dt_save
+    if abs(ratio - round(ratio)) > 1e-9 * max(1.0, ratio):
+        n = max(int(round(ratio)), 1)
+        print(
+            f"smibjax: warning: --dt-save {args.dt_save:g} does not divide --t-end "
+            f"{args.t_end:g}: sampling {n} equal intervals of "
+            f"{args.t_end / n:.6g} s instead",
+            file=sys.stderr,
+        )
 
 
 def _title(gains, fault, args) -> str:
@@ -522,7 +528,7 @@ def _cmd_cct(args) -> int:
         png = check_new_file(out.with_suffix(".png"), args.force, "--out (its plot)")
         if png == out:
             raise CLIError(
-                f"--out {str(out)!r} is not allowed: must not end in .png (the plot "
+                f"--out = {str(out)!r} is not allowed: must not end in .png (the plot "
                 "is written beside it as .png)"
             )
     sets, (plant, op, init) = _cct_sets(args)
@@ -622,10 +628,10 @@ def _cmd_reproduce(args) -> int:
 
     out = Path(args.out)
     if out.exists() and not out.is_dir():
-        raise CLIError(f"--out {str(out)!r} is not allowed: must be a folder")
+        raise CLIError(f"--out = {str(out)!r} is not allowed: must be a folder")
     if out.is_dir() and any(out.iterdir()) and not args.force:
         raise CLIError(
-            f"--out {str(out)!r} is not allowed: must be a new or empty folder (it "
+            f"--out = {str(out)!r} is not allowed: must be a new or empty folder (it "
             "holds files; add --force to replace the ones reproduce writes)"
         )
     reproduce(out, preset=args.preset, t_end=args.t_end)
