@@ -86,7 +86,7 @@ def test_solver_tolerances_reach_the_run(capsys):
         (["simulate", "--set", "alpha"], "NAME=VALUE"),
         (["simulate", "--gains", "/nonexistent/g.json"], "does not exist"),
         (["simulate", "--fault-location", "1.5"], "lam = 1.5"),
-        (["simulate", "--t-end", "-2"], "t_end = -2"),
+        (["simulate", "--t-end", "-2"], "--t-end: -2 is not allowed: must be > 0"),
         (["simulate", "--controller", "pid"], "invalid choice"),
         (["simulate", "--fault-time", "abc"], "invalid float"),
         (["simulate", "--atol=-1e-6"], "--atol: -1e-6 is not allowed"),
@@ -218,7 +218,7 @@ def test_cct_and_compare_refuse_a_fault_outside_the_horizon(tmp_path, capsys):
     "argv, needle",
     [
         (["--tol", "1e-300"], "--tol 1e-300 is not allowed: must be within [1e-09, "),
-        (["--tol", "nan"], "--tol nan is not allowed"),
+        (["--tol", "nan"], "--tol: nan is not allowed"),
         (["--fault-location", "0.5", "nan"], "--fault-location nan is not allowed"),
         (["--reclose-time", "inf"], "--reclose-time inf is not allowed"),
     ],
