@@ -32,7 +32,7 @@ TINY = {
         "--n-check",
         "1",
         "--t-end",
-        "0.5",
+        "1.3",  # every sampled fault (up to 1.0 s + 0.25 s) clears within the run
         "--repeat",
         "1",
     ],
@@ -49,10 +49,10 @@ TINY = {
         "1",
     ],
     "gradients": ["--batch", "1", "--t-end", "1.5", "--repeat", "1"],
-    "compile": ["--cases", "simulate", "--repeat", "1", "--t-end", "0.5"],
-    "montecarlo": ["--n", "8", "--chunk", "4", "--t-end", "1.0"],
+    "compile": ["--cases", "simulate", "--repeat", "1", "--t-end", "0.8"],
+    "montecarlo": ["--n", "8", "--chunk", "4", "--t-end", "1.3"],
     "stiff_solvers": ["--methods", "RK45", "Radau", "--t-end", "1.0"],
-    "cluster_scaling": ["--n", "8", "--chunk", "4", "--t-end", "1.0", "--workers", "1"]
+    "cluster_scaling": ["--n", "8", "--chunk", "4", "--t-end", "1.3", "--workers", "1"]
     + ["--roundtrips", "3"],
 }
 

@@ -93,7 +93,7 @@ def test_solver_tolerances_reach_the_run(capsys):
         (["simulate", "--set", "alpha"], "NAME=VALUE"),
         (["simulate", "--gains", "/nonexistent/g.json"], "does not exist"),
         (["simulate", "--fault-location", "1.5"], "lam = 1.5"),
-        (["simulate", "--t-end", "-2"], "t_end = -2"),
+        (["simulate", "--t-end", "-2"], "--t-end: -2 is not allowed: must be > 0"),
         (["simulate", "--controller", "pid"], "invalid choice"),
         (["simulate", "--fault-time", "abc"], "invalid float"),
         (["simulate", "--atol=-1e-6"], "--atol: -1e-6 is not allowed"),
@@ -160,3 +160,221 @@ def test_reproduce_writes_figures_data_and_table(tmp_path, capsys):
     assert table["stabilized AFTSC"]["overshoot"] == pytest.approx(0.154, abs=5e-4)
     csv = np.loadtxt(tmp_path / "stabilized_asc.csv", delimiter=",", skiprows=1)
     assert csv.shape[1] == 12
+
+
+# Issue 16: no wrong answer, no lost file.
+
+
+def _one_line(capsys, needle):
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith("smibjax: error:"), err
+    assert needle in err, err
+    return err
+
+
+def test_a_run_that_stopped_early_reports_not_reached(tmp_path, capsys):
+    out = tmp_path / "r.npz"
+    assert (
+        main(["simulate", "--max-steps", "1", "--t-end", "2", "--out", str(out)]) == 0
+    )
+    text = capsys.readouterr().out
+    assert "UNDECIDED" in text
+    assert "settling time delta: not reached" in text
+    assert "first-swing overshoot: not reached" in text
+    assert "0.000 s" not in text.split("settling time delta")[1].split("solver:")[0]
+    meta = json.loads(str(np.load(out)["meta"]))
+    assert meta["metrics"]["settling_delta"] is None
+    assert meta["metrics"]["overshoot"] is None and meta["metrics"]["stable"] is False
+
+
+@pytest.mark.parametrize(
+    "argv, needle",
+    [
+        (
+            ["--t-end", "2", "--fault-time", "5", "--clear-time", "5.2"]
+            + ["--reclose-time", "6"],
+            "Fault.t_fault = 5 is not allowed: must be < t_end = 2",
+        ),
+        (
+            ["--t-end", "2", "--fault-time", "1", "--clear-time", "2.5"]
+            + ["--reclose-time", "3"],
+            "Fault.t_clear = 2.5 is not allowed: must be < t_end = 2",
+        ),
+        (["--dt-save", "1e-300"], "t_end / dt_save = 10 / 1e-300 is not allowed"),
+        (["--t-end", "1e308"], "t_end / dt_save = 1e+308 / 0.01 is not allowed"),
+        (["--t-end", "nan"], "argument --t-end: nan is not allowed"),
+        (["--set", "H=inf"], "Plant.H = inf is not allowed"),
+        (["--set", "Xd=inf"], "Plant.Xd = inf is not allowed"),
+        (["--set", "Pm_ref=inf"], "OperatingPoint.Pm_ref = inf is not allowed"),
+        (["--set", "th2=1e308"], "InitialEstimates.th2 = 1e+308 is not allowed"),
+        (["--set", "D=nan"], "Plant.D = nan is not allowed"),
+        (["--fault-reactance", "inf"], "Fault.Xf = inf is not allowed"),
+        (["--reclose-time", "inf"], "Fault.t_reclose = inf is not allowed"),
+    ],
+)
+def test_simulate_refuses_what_it_cannot_answer(argv, needle, tmp_path, capsys):
+    out = tmp_path / "r.npz"
+    assert main(["simulate", *argv, "--out", str(out)]) == 2
+    _one_line(capsys, needle)
+    assert not out.exists()
+
+
+def test_cct_and_compare_refuse_a_fault_outside_the_horizon(tmp_path, capsys):
+    assert main(["cct", "--t-end", "1.5", "--fault-location", "0.5"]) == 2
+    _one_line(capsys, "--reclose-time 2 is not allowed: must be before --t-end 1.5")
+    out = tmp_path / "cmp"
+    argv = ["compare", "--t-end", "1.0", "--n", "2", "--out", str(out)]
+    assert main([*argv, "--reclose-time", "0.9"]) == 2  # CCT fits, Monte Carlo not
+    _one_line(capsys, "t_end = 1 is not allowed: must be > 1.25 s")
+    assert not out.exists()
+
+
+@pytest.mark.parametrize(
+    "argv, needle",
+    [
+        (["--tol", "1e-300"], "--tol 1e-300 is not allowed: must be within [1e-09, "),
+        (["--tol", "nan"], "--tol: nan is not allowed"),
+        (["--fault-location", "0.5", "nan"], "--fault-location nan is not allowed"),
+        (["--reclose-time", "inf"], "--reclose-time inf is not allowed"),
+    ],
+)
+def test_cct_and_compare_options_are_checked_before_any_work(
+    argv, needle, tmp_path, capsys
+):
+    assert main(["cct", *argv, "--out", str(tmp_path / "c.json")]) == 2
+    _one_line(capsys, needle)
+    assert main(["compare", "--n", "2", *argv, "--out", str(tmp_path / "k")]) == 2
+    _one_line(capsys, needle)
+    assert list(tmp_path.iterdir()) == []
+    if "--fault-location" not in argv:
+        assert main(["cct", "--fault-reactance", "inf", *argv[:0]]) == 2
+        _one_line(capsys, "Fault.Xf = inf is not allowed")
+
+
+@pytest.mark.parametrize("suffix", [".toml", ".json"])
+def test_files_that_are_not_utf8_are_one_line(tmp_path, capsys, suffix):
+    bad = tmp_path / f"g{suffix}"
+    bad.write_bytes(b"beta1 = -1\n# caf\xe9 \xff\n")
+    assert main(["simulate", "--gains", str(bad)]) == 2
+    _one_line(capsys, "must be UTF-8 text")
+    assert main(["montecarlo", "--dist", str(bad), "--out", str(tmp_path / "o")]) == 2
+    _one_line(capsys, "must be UTF-8 text")
+    assert not (tmp_path / "o").exists()
+
+
+def test_process_errors_have_no_traceback(tmp_path):
+    """A few of the probe's inputs, through a real process."""
+    env = {**os.environ, "SMIBJAX_CACHE_DIR": str(ROOT / ".jax_cache")}
+    bad = tmp_path / "g.toml"
+    bad.write_bytes(b"\xff\xfe")
+    for argv in (
+        ["simulate", "--dt-save", "1e-300"],
+        ["simulate", "--gains", str(bad)],
+        ["montecarlo", "--seed", "-1", "--out", str(tmp_path / "o")],
+    ):
+        p = subprocess.run(
+            [sys.executable, "-m", "smibjax", *argv],
+            capture_output=True,
+            text=True,
+            env=env,
+            cwd=ROOT,
+        )
+        assert p.returncode == 2, argv
+        assert "Traceback" not in p.stderr
+        assert len(p.stderr.strip().splitlines()) == 1, p.stderr
+    assert not (tmp_path / "o").exists()
+
+
+def test_simulate_never_replaces_a_file_without_force(tmp_path, capsys):
+    out, png = tmp_path / "r.npz", tmp_path / "r.png"
+    out.write_bytes(b"precious")
+    argv = ["simulate", "--t-end", "2", "--out", str(out)]
+    assert main(argv) == 2
+    _one_line(capsys, f"--out = '{out}' is not allowed: must be a new file")
+    assert out.read_bytes() == b"precious"
+    # the name without .npz is the same file
+    assert main(["simulate", "--t-end", "2", "--out", str(tmp_path / "r")]) == 2
+    _one_line(capsys, "add --force")
+    png.write_bytes(b"precious")
+    assert main(["simulate", "--t-end", "2", "--plot", str(png)]) == 2
+    _one_line(capsys, f"--plot = '{png}' is not allowed: must be a new file")
+    assert png.read_bytes() == b"precious"
+    assert main([*argv, "--plot", str(png), "--force"]) == 0
+    assert np.load(out)["t"][-1] == 2.0 and png.read_bytes()[:4] == b"\x89PNG"
+
+
+@pytest.mark.parametrize(
+    "name, magic", [("p.pdf", b"%PDF"), ("p.svg", b"<?xml"), ("p.PNG", b"\x89PNG")]
+)
+def test_plot_writes_the_format_of_its_suffix(tmp_path, capsys, name, magic):
+    path = tmp_path / name
+    assert main(["simulate", "--t-end", "2", "--plot", str(path)]) == 0
+    assert path.read_bytes()[: len(magic)] == magic
+
+
+@pytest.mark.parametrize("name", ["p.foo", "p", "p.pgf"])
+def test_plot_refuses_unknown_formats_before_the_run(tmp_path, capsys, name):
+    assert main(["simulate", "--t-end", "2", "--plot", str(tmp_path / name)]) == 2
+    _one_line(capsys, "is not allowed: must end in one of .eps")
+    assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("mask, mode", [(0o022, 0o644), (0o027, 0o640), (0o002, 0o664)])
+def test_output_files_honour_the_umask(tmp_path, capsys, mask, mode):
+    old = os.umask(mask)
+    try:
+        out = tmp_path / "r.npz"
+        assert main(["simulate", "--t-end", "2", "--out", str(out)]) == 0
+        assert out.stat().st_mode & 0o777 == mode
+    finally:
+        os.umask(old)
+
+
+def test_cct_never_replaces_a_file_without_force(tmp_path, capsys):
+    out = tmp_path / "c.json"
+    out.write_text("precious")
+    argv = ["cct", "--fault-location", "0.5", "--tol", "0.2", "--out", str(out)]
+    assert main(argv) == 2  # refused before any simulation
+    _one_line(capsys, "must be a new file (it exists; add --force")
+    assert out.read_text() == "precious"
+    out.unlink()
+    (tmp_path / "c.png").write_text("precious")  # its plot is a file it writes too
+    assert main(argv) == 2
+    _one_line(capsys, "c.png")
+    assert not out.exists()
+    assert main([*argv, "--force"]) == 0
+    assert json.loads(out.read_text())["fault_location"] == [0.5]
+    assert (tmp_path / "c.png").read_bytes()[:4] == b"\x89PNG"
+
+
+def test_reproduce_never_replaces_files_without_force(tmp_path, capsys):
+    (tmp_path / "metrics.md").write_text("precious")
+    assert main(["reproduce", "--out", str(tmp_path), "--t-end", "3"]) == 2
+    _one_line(capsys, "add --force")
+    assert (tmp_path / "metrics.md").read_text() == "precious"
+    assert list(tmp_path.iterdir()) == [tmp_path / "metrics.md"]
+
+
+def test_version_and_help_hint(capsys):
+    from smibjax import __version__
+
+    with pytest.raises(SystemExit) as e:
+        main(["--version"])
+    assert e.value.code == 0
+    assert capsys.readouterr().out.strip() == f"smibjax {__version__}"
+    for sub in ("simulate", "montecarlo", "cct"):
+        assert main([sub, "--bogus", "1"]) == 2
+        _one_line(capsys, f"(see `python -m smibjax {sub} --help`)")
+    assert main(["simulate", "--t-end", "x"]) == 2
+    _one_line(capsys, "(see `python -m smibjax simulate --help`)")
+
+
+def test_dt_save_that_does_not_divide_the_horizon_says_what_it_did(capsys):
+    assert main(["simulate", "--t-end", "2", "--dt-save", "0.03"]) == 0
+    err = capsys.readouterr().err
+    assert "--dt-save 0.03 does not divide --t-end 2: sampling 67 equal" in err
+    assert main(["simulate", "--t-end", "2", "--dt-save", "0.02"]) == 0
+    assert "warning" not in capsys.readouterr().err
+    # a refusal stays one line: no warning before it
+    assert main(["simulate", "--t-end", "2", "--dt-save", "0.03", "--set", "H=0"]) == 2
+    _one_line(capsys, "Plant.H = 0 is not allowed")

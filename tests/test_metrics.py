@@ -74,3 +74,21 @@ def test_a_run_that_spent_its_step_budget_is_not_stable(jax_runs):
     assert bool(metrics(tr).stable)
     cut = eqx.tree_at(lambda x: x.budget_exhausted, tr, jnp.asarray(True))
     assert not bool(metrics(cut).stable)
+
+
+def test_a_run_that_spent_its_step_budget_has_no_metrics():
+    """Issue 16: `--max-steps 1` stops at t = 0; its metrics are "not reached" (NaN),
+    not a settling time of 0 s and an overshoot of 0."""
+    import smibjax as sj
+
+    tr = sj.simulate(sj.Gains.paper("asc", beta1=-1.0, beta2=-1.0), max_steps=1)
+    assert bool(tr.budget_exhausted) and float(tr.t_stop) == 0.0
+    m = metrics(tr)
+    assert not bool(m.stable)
+    for k, v in m._asdict().items():
+        if k != "stable":
+            assert np.isnan(float(v)), k
+    # a run that gets there keeps numbers
+    full = metrics(sj.simulate(sj.Gains.paper("asc", beta1=-1.0, beta2=-1.0)))
+    assert bool(full.stable) and 3.0 < float(full.settling_delta) < 6.0
+    assert float(full.overshoot) > 0.1

@@ -4,6 +4,7 @@ single runs, chunking that changes nothing, resume after kill -9, one-line error
 import json
 import math
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -335,3 +336,86 @@ def test_runs_that_spend_the_step_budget_are_counted_apart(tmp_path, capsys):
     summary = json.loads((out / "summary.json").read_text())
     assert summary["budget_exhausted"] == 4 and summary["stable"] == 0
     assert main(["montecarlo", "--max-steps", "0", "--out", str(tmp_path / "x")]) == 2
+
+
+# Issue 16: Monte Carlo specs that would report runs that never got there, and
+# resumes of damaged chunk files.
+
+
+@pytest.mark.parametrize(
+    "kw, match",
+    [
+        (
+            dict(seed=-1),
+            r"seed = -1 is not allowed: must be an integer in \[0, 2\*\*32\)",
+        ),
+        (dict(seed=2**32), r"seed = 4294967296 is not allowed"),
+        (dict(seed=1.5), r"seed = 1.5 is not allowed"),
+        (dict(t_end=1.1), r"t_end = 1.1 is not allowed: must be > 1.25 s"),
+        (dict(t_end=1e308), r"t_end / dt_save = 1e\+308 / 0.01 is not allowed"),
+        (
+            dict(t_end=3.0, dist={"t_fault": [2.0, 5.0]}),
+            r"t_end = 3 is not allowed: must be > 5.25 s",
+        ),
+        (dict(dist={"t_fault": [0.2, math.inf]}), r"t_fault = \[0.2, inf\] .*finite"),
+        (dict(dist={"reclose_delay": [1.0, math.inf]}), r"reclose_delay = .*finite"),
+        (dict(dist={"fault_reactance": [0.0, math.nan]}), r"fault_reactance = "),
+        (dict(dist={"D": [0.1, math.inf]}), r"D = \[0.1, inf\] .*finite"),
+        (dict(dist={"Pm": [0.5, 1e300]}), r"Pm = \[0.5, 1e\+300\] .*<= 1e\+06"),
+    ],
+)
+def test_specs_that_cannot_be_run_honestly_are_refused(kw, match):
+    with pytest.raises(sj.ParameterError, match=match):
+        spec(**kw)
+
+
+@pytest.mark.parametrize(
+    "argv, match",
+    [
+        (["--seed", "-1"], r"seed = -1 is not allowed"),
+        (["--seed", str(2**32)], r"seed = 4294967296 is not allowed"),
+        (["--t-end", "1.0"], r"t_end = 1 is not allowed: must be > 1.25 s"),
+        (["--set", "H=inf"], r"Plant.H = inf is not allowed"),
+    ],
+)
+def test_montecarlo_refuses_before_writing_anything(argv, match, tmp_path, capsys):
+    out = tmp_path / "o"
+    assert main(["montecarlo", "--n", "4", *argv, "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and re.search(match, err), err
+    assert not out.exists()  # no run.json left to refuse the next, correct command
+
+
+def test_dist_with_an_infinite_range_is_refused_before_the_run(tmp_path, capsys):
+    dist = tmp_path / "d.toml"
+    for text, match in (
+        ("t_fault = [0.2, inf]\n", r"t_fault = \[0.2, inf\] is not allowed"),
+        ("D = [0.1, nan]\n", r"D = \[0.1, nan\] is not allowed"),
+    ):
+        dist.write_text(text)
+        out = tmp_path / "o"
+        assert main(["montecarlo", "--dist", str(dist), "--out", str(out)]) == 2
+        err = capsys.readouterr().err.strip()
+        assert err.startswith("smibjax: error:") and len(err.splitlines()) == 1
+        assert re.search(match, err), err
+        assert not out.exists()
+
+
+@pytest.mark.parametrize("damage", ["truncate", "empty", "garbage", "wrong_rows"])
+def test_resume_recomputes_a_damaged_chunk(reference_run, tmp_path, damage):
+    out, rows, _ = reference_run
+    run = tmp_path / "r"
+    run_montecarlo(spec(), run, progress=False, plots=False)
+    chunk = run / "chunks" / "000001.npz"
+    data = chunk.read_bytes()
+    if damage == "truncate":
+        chunk.write_bytes(data[: len(data) // 2])
+    elif damage == "empty":
+        chunk.write_bytes(b"")
+    elif damage == "garbage":
+        chunk.write_bytes(b"not a zip file at all" * 10)
+    else:  # a whole file, but chunk 0's rows
+        chunk.write_bytes((run / "chunks" / "000000.npz").read_bytes())
+    (run / "scenarios.csv").unlink()
+    run_montecarlo(spec(), run, resume=True, progress=False, plots=False)
+    assert (run / "scenarios.csv").read_text() == (out / "scenarios.csv").read_text()

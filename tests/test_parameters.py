@@ -1,6 +1,10 @@
+import math
+
 import jax
 import jax.numpy as jnp
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 import smibjax as sj
 from smibjax.parameters import GAIN_NAMES, PLANT_NAMES
@@ -97,3 +101,81 @@ def test_validation_compiles_nothing():
     # building the sets: the conversions of the fields to float arrays only
     assert set(before) <= {"jit(convert_element_type)"}, before
     assert "jit(greater)" in after, after
+
+
+# Issue 16, class 1: no parameter passes validation with a value the model cannot use.
+_OP_NAMES = ("delta_e", "Pm_ref")
+_INIT_NAMES = ("th1", "th2")
+_LIMITS = ("uf_min", "uf_max", "ur_min", "ur_max")
+_ALL_NAMES = (*GAIN_NAMES, *PLANT_NAMES, *_OP_NAMES, *_INIT_NAMES)
+_BOUNDED = tuple(
+    n for n in (*PLANT_NAMES, *_OP_NAMES, *_INIT_NAMES) if n not in _LIMITS
+)
+
+
+def _build(name, value):
+    """The parameter sets with one value changed, as the CLI builds them (--set)."""
+    from smibjax.cli import build_parameters
+
+    return build_parameters("aftsc", "paper", None, {name: value})
+
+
+@settings(max_examples=300, deadline=None)
+@given(
+    name=st.sampled_from(_ALL_NAMES),
+    value=st.sampled_from([math.nan, math.inf, -math.inf]),
+)
+def test_no_parameter_accepts_nan_or_inf(name, value):
+    if name in _LIMITS and not math.isnan(value):
+        # an infinite limit is "no limit"; the other end must stay above/below it
+        low = name.endswith("_min")
+        if (value < 0) == low:
+            _build(name, value)  # -inf lower / +inf upper limit: accepted
+            return
+    # (a limit may be reported through the other end: "uf_min = -inf ... < uf_max")
+    who = rf"{name[:2]}_(min|max)" if name in _LIMITS else name
+    with pytest.raises(sj.ParameterError, match=rf"\.{who} = ") as info:
+        _build(name, value)
+    assert "\n" not in str(info.value)
+
+
+@settings(max_examples=300, deadline=None)
+@given(
+    name=st.sampled_from(_BOUNDED),
+    value=st.floats(min_value=1.0000001e6, max_value=1e308),
+    sign=st.sampled_from([1.0, -1.0]),
+)
+def test_plant_operating_point_and_estimates_refuse_huge_values(name, value, sign):
+    with pytest.raises(sj.ParameterError, match=rf"\.{name} = .* is not allowed"):
+        _build(name, sign * value)
+
+
+@pytest.mark.parametrize("name", ["th1", "th2", "H", "Pm", "Pm_ref", "D", "Xd"])
+def test_the_magnitude_bound_is_inclusive_and_stated(name):
+    _build(name, 1e6)  # |value| <= 1e6: accepted
+    with pytest.raises(sj.ParameterError, match=r"finite with \|value\| <= 1e\+06"):
+        _build(name, 1.5e6)
+
+
+@settings(max_examples=100, deadline=None)
+@given(
+    name=st.sampled_from(sj.FAULT_NAMES),
+    value=st.sampled_from([math.nan, math.inf, -math.inf]),
+)
+def test_fault_times_and_location_must_be_finite(name, value):
+    with pytest.raises(sj.ParameterError, match=rf"Fault\.{name} = "):
+        sj.Fault(**{name: value})
+
+
+@settings(max_examples=100, deadline=None)
+@given(
+    name=st.sampled_from(GAIN_NAMES),
+    value=st.sampled_from([math.nan, math.inf, -math.inf]),
+)
+def test_gains_file_with_non_finite_values_is_refused(tmp_path_factory, name, value):
+    from smibjax.cli import build_parameters
+
+    path = tmp_path_factory.mktemp("g") / "g.toml"
+    path.write_text(f"{name} = {'nan' if math.isnan(value) else value}\n")
+    with pytest.raises(sj.ParameterError, match=rf"Gains\.{name} = "):
+        build_parameters("aftsc", "paper", str(path), {})

@@ -201,3 +201,40 @@ def test_loss_of_synchronism_through_the_reactance_threshold():
     assert float(tr.u_r[0]) > 100.0
     np.testing.assert_allclose(np.asarray(tr.delta), 0.4964, atol=1e-3)
     np.testing.assert_allclose(np.asarray(tr.E), float(tr.E[0]), atol=1e-2)
+
+
+@pytest.mark.parametrize(
+    "fault, t_end, match",
+    [
+        (
+            dict(t_fault=5.0, t_clear=5.2, t_reclose=6.0),
+            2.0,
+            r"t_fault = 5 .*< t_end = 2",
+        ),
+        (
+            dict(t_fault=1.0, t_clear=2.5, t_reclose=3.0),
+            2.0,
+            r"t_clear = 2.5 .*< t_end",
+        ),
+        (dict(t_fault=1.0, t_clear=2.0, t_reclose=3.0), 2.0, r"t_clear = 2 .*< t_end"),
+    ],
+)
+def test_a_fault_outside_the_horizon_is_refused(fault, t_end, match):
+    """Issue 16: a run that ends before the fault (or its clearing) is no verdict on
+    it; simulate refuses it rather than report 'stable, settled in 0 s'."""
+    with pytest.raises(sj.ParameterError, match=match):
+        sj.simulate(sj.Gains.paper("asc"), sj.Fault(**fault), t_end=t_end)
+    # reclosing after the horizon is allowed (the line stays open to the end)
+    ok = sj.simulate(
+        sj.Gains.paper("asc", beta1=-1.0, beta2=-1.0),
+        sj.Fault(t_fault=0.5, t_clear=0.7, t_reclose=9.0),
+        t_end=3.0,
+    )
+    assert float(ok.t_stop) == 3.0
+
+
+def test_dt_save_is_bounded():
+    with pytest.raises(
+        sj.ParameterError, match=r"t_end / dt_save = 10 / 1e-300 is not allowed"
+    ):
+        sj.simulate(dt_save=1e-300)

@@ -26,7 +26,7 @@ def load_toml(path: str | Path) -> dict:
         raise ParameterError(f"config file {str(p)!r} does not exist")
     try:
         return tomllib.loads(p.read_text())
-    except tomllib.TOMLDecodeError as e:
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as e:  # (not UTF-8)
         raise ParameterError(f"config file {str(p)!r} is not valid TOML: {e}") from e
 
 
@@ -61,6 +61,9 @@ def load_config(path: str | Path | None = None) -> dict:
 
 def check_config(cfg: dict) -> None:
     """One-line errors for values out of range."""
+    from .finite import check_finite
+
+    check_finite(cfg)  # inf/NaN anywhere (issue 16)
 
     def req(ok, key, value, allowed):
         if not ok:

@@ -39,6 +39,7 @@ from smibjax.scenarios import ScenarioDistribution  # noqa: E402
 
 from .config import check_config, load_config  # noqa: E402
 from .params import GainSpace, gains_to_dict  # noqa: E402
+from .resume import SessionClock, start_mode  # noqa: E402
 from .search import cross_entropy_search, make_population_score  # noqa: E402
 from .train import (  # noqa: E402
     Setup,
@@ -489,36 +490,18 @@ def main(argv=None) -> int:
         else:
             stamp = datetime.datetime.now().strftime("%Y%m%d-%H%M%S")
             out = Path("runs") / f"tune-{stamp}"
-        if args.resume:
-            if not args.out:
-                raise UsageError("--resume needs --out DIR (the run to continue)")
-            saved = out / "config.json"
-            if not (out / CHECKPOINT).is_file() or not saved.is_file():
-                raise UsageError(
-                    f"--resume: no checkpoint in {str(out)!r} ({CHECKPOINT} and "
-                    "config.json are needed)"
-                )
-            cfg = {
-                **json.loads(saved.read_text()),
-                **{
-                    k: getattr(args, k)
-                    for k in ("steps",)
-                    if getattr(args, k) is not None
-                },
-            }
-        elif out.exists() and any(out.iterdir()):
-            raise UsageError(
-                f"--out {str(out)!r} already holds files: use --resume to "
-                "continue it or choose another folder"
-            )
+        if args.resume and not args.out:
+            raise UsageError("--resume needs --out DIR (the run to continue)")
+        resume = start_mode(out, cfg, args.resume, CHECKPOINT)  # tuning/resume.py
         sj.enable_compilation_cache()
         build(cfg)  # validate gains, bounds, scenarios before any work
         out.mkdir(parents=True, exist_ok=True)
-        if not args.resume:
+        if not resume:
             write_json(out / "config.json", cfg)
-        t0 = time.perf_counter()
-        state = run(cfg, out, resume=args.resume, quiet=args.quiet)
-        state["wall_seconds"] = time.perf_counter() - t0
+        clock, t0 = SessionClock(out, args.resume), time.perf_counter()
+        state = run(cfg, out, resume=resume, quiet=args.quiet)
+        total, state["wall_sessions"] = clock.finish(time.perf_counter() - t0)
+        state["wall_seconds"] = total  # all sessions of the run
         finish(cfg, out, state)
         print(
             f"wrote {out}/gains.json, report.md, history.csv and plots "

@@ -271,7 +271,12 @@ def write_report(cfg: dict, out: Path, state: dict) -> None:
         + f"; true damping D {_d_range(cfg)}; {state['step']} steps of batch "
         f"{cfg['batch']} (seed {cfg['seed']}), start `{cfg['init']}`."
         + (
-            f" Wall time {state['wall_seconds']:.0f} s."
+            f" Wall time {state['wall_seconds']:.0f} s"
+            + (
+                f" (sum over {state['wall_sessions']} sessions)."
+                if state.get("wall_sessions", 1) > 1
+                else "."
+            )
             if "wall_seconds" in state
             else ""
         ),

@@ -38,6 +38,66 @@ def require(ok, owner: str, name: str, value, allowed: str) -> None:
         )
 
 
+MAX_MAGNITUDE = 1e6
+"""The largest |value| accepted for a plant parameter, operating-point value or initial
+estimate: far beyond any physical per-unit value, and small enough that the model's
+products and powers of it stay finite in float64 (1e308 overflows to inf/NaN)."""
+
+
+def require_finite(
+    p, owner: str, names, bound: float | None = MAX_MAGNITUDE, allow_inf=()
+) -> None:
+    """Raise `ParameterError` unless every field `names` of the NumPy namespace `p` is
+    finite (NaN never passes) and, with `bound`, within [-bound, bound]. Names in
+    `allow_inf` may also be +-inf (e.g. an absent input limit)."""
+    for name in names:
+        v = getattr(p, name, None)
+        if v is None or np.asarray(v).dtype.kind not in "fiu":
+            continue
+        v = np.asarray(v, dtype=float)
+        ok = np.isfinite(v) | (np.isinf(v) & (name in allow_inf))
+        what = "finite" if name not in allow_inf else "a number or +-inf"
+        if bound is not None:
+            ok = ok & ((np.abs(v) <= bound) | np.isinf(v))
+            what += f" with |value| <= {bound:g}"
+        require(ok, owner, name, v, f"must be {what}")
+
+
+def require_in_horizon(t_fault, t_clear, t_end: float) -> None:
+    """Raise `ParameterError` unless the fault and its clearing lie inside the horizon
+    (t_fault < t_clear < t_end, everywhere in a batch): a run that ends before the
+    fault (or before its clearing) would report the pre-fault state as a verdict on
+    the fault."""
+    tf, tc = np.asarray(t_fault, dtype=float), np.asarray(t_clear, dtype=float)
+    require(
+        tf < t_end,
+        "Fault",
+        "t_fault",
+        tf,
+        f"must be < t_end = {t_end:g} (the fault must happen within the run)",
+    )
+    require(
+        tc < t_end,
+        "Fault",
+        "t_clear",
+        tc,
+        f"must be < t_end = {t_end:g} (the fault must be cleared within the run)",
+    )
+
+
+MAX_SAMPLES = 1_000_000  # samples of one run: ~200 MB of outputs
+
+
+def require_samples(t_end: float, dt_save: float) -> None:
+    """Raise `ParameterError` unless t_end / dt_save (the samples of a run) is at most
+    `MAX_SAMPLES`."""
+    if not t_end / dt_save <= MAX_SAMPLES:
+        raise ParameterError(
+            f"t_end / dt_save = {t_end:g} / {dt_save:g} is not allowed: must be <= "
+            f"{MAX_SAMPLES:g} samples a run (dt_save >= {t_end / MAX_SAMPLES:g} s)"
+        )
+
+
 def require_count(name: str, v) -> None:
     """Raise `ParameterError` unless `v` is an integer >= 1 (not a bool)."""
     if isinstance(v, bool) or not isinstance(v, numbers.Integral) or v < 1:

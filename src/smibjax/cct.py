@@ -45,7 +45,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ._validate import require_count, require_positive
+from ._validate import require_count, require_positive, require_samples
 from .controller import static_alpha
 from .metrics import metrics
 from .parallel import device_map
@@ -64,6 +64,8 @@ __all__ = ["critical_clearing_times", "scan_durations", "CRITERIA", "STATUSES"]
 # Stability criteria of a CCT run (MODEL.md section 2, "Baselines", and section 4).
 CRITERIA = ("settled", "synchronism")
 STATUSES = ("ok", "non_monotone", "exceeds_window", "unstable_at_min")
+
+MIN_TOL = 1e-9  # s: a finer bisection is below the solver's accuracy
 
 
 def _stable_batch_fn(
@@ -148,9 +150,9 @@ def _check_window(fault_time, reclose_time, t_end, tol, scan_step) -> float:
             f"t_end = {t_end:g} s is not allowed: must be after the reclose time "
             f"{reclose_time:g} s (fault time + window)"
         )
-    if not 0 < tol < window:
+    if not MIN_TOL <= tol < window:
         raise ParameterError(
-            f"tol = {tol:g} is not allowed: must be within (0, {window:g}) s"
+            f"tol = {tol:g} is not allowed: must be within [{MIN_TOL:g}, {window:g}) s"
         )
     require_positive("scan_step", scan_step)
     return window
@@ -210,6 +212,9 @@ def critical_clearing_times(
                 f"fault location {lam:g} is not allowed: must be within (0, 1)"
             )
     window = _check_window(fault_time, reclose_time, t_end, tol, scan_step)
+    require_samples(t_end, 0.01)  # simulate's default sampling, as the lanes run
+    for duration in (tol, window):  # the lanes' extremes, before any work
+        Fault(fault_time, fault_time + duration, reclose_time, locs[0], fault_reactance)
     if not gain_sets:
         raise ParameterError("give at least one gain set")
     names = list(gain_sets)

@@ -22,10 +22,23 @@ class CLIError(Exception):
 
 
 class _Parser(argparse.ArgumentParser):
-    def error(self, message):  # one line, no usage dump
-        raise CLIError(f"{message} (see `python -m smibjax {self._sub} --help`)")
-
     _sub = ""
+
+    def error(self, message):  # one line, no usage dump
+        where = f"python -m smibjax {self._sub} --help".replace("  ", " ")
+        raise CLIError(f"{message} (see `{where}`)")
+
+    def parse_args(self, args=None, namespace=None):
+        """As argparse's, but arguments left over are reported with the help of the
+        subcommand they were given to (argparse reports them at the top level)."""
+        ns, extras = self.parse_known_args(args, namespace)
+        if extras:
+            sub = getattr(ns, "command", None) or ""
+            where = f"python -m smibjax {sub} --help".replace("  ", " ")
+            raise CLIError(
+                f"unrecognized arguments: {' '.join(extras)} (see `{where}`)"
+            )
+        return ns
 
 
 def _add_common(p: argparse.ArgumentParser) -> None:
@@ -66,6 +79,15 @@ def _add_common(p: argparse.ArgumentParser) -> None:
     _add_max_steps(p)
 
 
+def _add_force(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--force",
+        action="store_true",
+        help="replace existing output files (without it an existing file is refused "
+        "before any work)",
+    )
+
+
 def _add_max_steps(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--max-steps",
@@ -77,8 +99,8 @@ def _add_max_steps(p: argparse.ArgumentParser) -> None:
 
 
 def _tolerance(text: str) -> float:
-    """A solver tolerance: a finite number > 0 (checked while parsing, before any
-    work starts)."""
+    """A solver tolerance (or a horizon, a sampling interval): a finite number > 0
+    (checked while parsing, before any work starts)."""
     try:
         v = float(text)
     except ValueError:
@@ -235,6 +257,7 @@ def _cmd_simulate(args) -> int:
     from .report import format_summary, metrics_dict
     from .simulate import simulate
 
+    out, plot = _simulate_outputs(args)
     gains, plant, op, init = _build_from_args(args)
     fault = Fault(
         t_fault=args.fault_time,
@@ -256,6 +279,7 @@ def _cmd_simulate(args) -> int:
         atol=args.atol,
         max_steps=args.max_steps,
     )
+    _warn_dt_save(args)
     m = metrics(traj)
     print(format_summary(gains, fault, plant, traj, m, args))
     arrays = trajectory_arrays(traj)
@@ -266,23 +290,60 @@ def _cmd_simulate(args) -> int:
             "plant": {k: float(getattr(plant, k)) for k in plant.__dataclass_fields__},
             "adaptation": args.adaptation,
             "context": args.context.describe(),
-            "metrics": metrics_dict(m),
+            "metrics": {  # NaN (not reached) as null
+                k: None if isinstance(v, float) and math.isnan(v) else v
+                for k, v in metrics_dict(m).items()
+            },
         }
         arrays["meta"] = np.array(json.dumps(meta, allow_nan=True))
-        out = Path(args.out)
-        if out.suffix != ".npz":
-            out = out.with_name(out.name + ".npz")
         write_npz(out, arrays)
         print(f"wrote {out}")
-    if args.plot:
+    if plot:
         plot_trajectory(
             arrays,
-            args.plot,
+            plot,
             _title(gains, fault, args),
             (-float(plant.D), float(plant.Pm)),
         )
-        print(f"wrote {args.plot}")
+        print(f"wrote {plot}")
     return 0
+
+
+def _simulate_outputs(args) -> tuple[Path | None, Path | None]:
+    """simulate's --out (.npz appended when missing) and --plot paths, refused before
+    the run when they exist (without --force), name a folder, the same file, or (for
+    --plot) a format that cannot be written."""
+    from .io import check_new_file
+    from .plotting import check_plot_path
+
+    out = plot = None
+    if args.out:
+        out = Path(args.out)
+        if out.suffix != ".npz":
+            out = out.with_name(out.name + ".npz")
+        out = check_new_file(out, args.force, "--out")
+    if args.plot:
+        plot = check_new_file(check_plot_path(args.plot), args.force, "--plot")
+        if out is not None and plot.resolve() == out.resolve():
+            raise CLIError(
+                f"--plot = {str(plot)!r} is not allowed: must differ from --out"
+            )
+    return out, plot
+
+
+def _warn_dt_save(args) -> None:
+    """Say so when --dt-save does not divide --t-end: the run samples the nearest
+    number of equal intervals instead (printed after the run succeeded, so that a
+    refusal stays one line)."""
+    ratio = args.t_end / args.dt_save
+    if abs(ratio - round(ratio)) > 1e-9 * max(1.0, ratio):
+        n = max(int(round(ratio)), 1)
+        print(
+            f"smibjax: warning: --dt-save {args.dt_save:g} does not divide --t-end "
+            f"{args.t_end:g}: sampling {n} equal intervals of "
+            f"{args.t_end / n:.6g} s instead",
+            file=sys.stderr,
+        )
 
 
 def _title(gains, fault, args) -> str:
@@ -298,7 +359,7 @@ def _title(gains, fault, args) -> str:
 
 def _read_dist(path):
     """A scenario distribution from a flat TOML/JSON table of name = [lo, hi]."""
-    from .io import tomllib
+    from .io import read_utf8, tomllib
     from .parameters import ParameterError
     from .scenarios import ScenarioDistribution
 
@@ -307,12 +368,9 @@ def _read_dist(path):
     p = Path(path)
     if not p.is_file():
         raise ParameterError(f"--dist file {str(p)!r} does not exist or is not a file")
+    text = read_utf8(p)
     try:
-        data = (
-            tomllib.loads(p.read_text())
-            if p.suffix.lower() == ".toml"
-            else json.loads(p.read_text())
-        )
+        data = tomllib.loads(text) if p.suffix.lower() == ".toml" else json.loads(text)
     except ValueError as e:  # TOMLDecodeError and JSONDecodeError are ValueErrors
         raise ParameterError(f"--dist file {str(p)!r} is not valid: {e}") from e
     if not isinstance(data, dict):
@@ -455,8 +513,32 @@ def _check_cct_args(args) -> None:
             f"--reclose-time {args.reclose_time:g} is not allowed: must be after "
             f"--fault-time {args.fault_time:g}"
         )
-    if not args.tol > 0:
-        raise CLIError(f"--tol {args.tol:g} is not allowed: must be > 0")
+    from .cct import MIN_TOL
+    from .parameters import Fault
+
+    window = args.reclose_time - args.fault_time
+    if not MIN_TOL <= args.tol < window:
+        raise CLIError(
+            f"--tol {args.tol:g} is not allowed: must be within [{MIN_TOL:g}, "
+            f"{window:g}) s"
+        )
+    if not args.reclose_time < args.t_end:
+        raise CLIError(
+            f"--reclose-time {args.reclose_time:g} is not allowed: must be before "
+            f"--t-end {args.t_end:g}"
+        )
+    for lam in args.fault_location:  # every lane's fault, before any work
+        if not 0 < lam < 1:
+            raise CLIError(
+                f"--fault-location {lam:g} is not allowed: must be within (0, 1)"
+            )
+        Fault(
+            args.fault_time,
+            args.fault_time + args.tol,
+            args.reclose_time,
+            lam,
+            getattr(args, "fault_reactance", 0.0),
+        )
     if not args.scan_step > 0:
         raise CLIError(f"--scan-step {args.scan_step:g} is not allowed: must be > 0")
     if not (math.isfinite(args.t_end) and args.t_end > args.reclose_time):
@@ -541,18 +623,25 @@ def _run_cct(args, sets, plant, op, init) -> dict:
 
 
 def _cmd_cct(args) -> int:
-    from .io import write_json
+    from .io import check_new_file, write_json
     from .plotting import plot_cct
 
     _check_cct_args(args)
+    out = png = None
+    if args.out:
+        out = check_new_file(args.out, args.force, "--out")
+        png = check_new_file(out.with_suffix(".png"), args.force, "--out (its plot)")
+        if png == out:
+            raise CLIError(
+                f"--out = {str(out)!r} is not allowed: must not end in .png (the plot "
+                "is written beside it as .png)"
+            )
     sets, (plant, op, init) = _cct_sets(args)
     res = _run_cct(args, sets, plant, op, init)
     res["context"] = args.contexts
     _print_cct(res)
-    if args.out:
-        out = Path(args.out)
+    if out is not None:
         write_json(out, res)
-        png = out.with_suffix(".png")
         plot_cct(res, png)
         print(f"wrote {out} and {png}")
     return 0
@@ -643,7 +732,7 @@ def _add_mc_options(p, n_default: int) -> None:
         default=256,
         help="scenarios per batch (default 256: measured fastest on 2 cores)",
     )
-    p.add_argument("--t-end", type=float, default=10.0, help="horizon (s)")
+    p.add_argument("--t-end", type=_tolerance, default=10.0, help="horizon (s)")
     p.add_argument(
         "--resume", action="store_true", help="finish the run in --out after a stop"
     )
@@ -668,7 +757,9 @@ def _add_cct_options(p, with_reactance=True) -> None:
     p.add_argument("--reclose-time", type=float, default=2.0, help="t_reclose (s)")
     if with_reactance:
         p.add_argument("--fault-reactance", type=float, default=0.0, help="Xf (pu)")
-    p.add_argument("--tol", type=float, default=1e-3, help="bisection tolerance (s)")
+    p.add_argument(
+        "--tol", type=_tolerance, default=1e-3, help="bisection tolerance (s)"
+    )
     p.add_argument(
         "--scan-step",
         type=float,
@@ -681,7 +772,15 @@ def _add_cct_options(p, with_reactance=True) -> None:
 def _cmd_reproduce(args) -> int:
     from .reproduce import reproduce
 
-    reproduce(Path(args.out), preset=args.preset, t_end=args.t_end)
+    out = Path(args.out)
+    if out.exists() and not out.is_dir():
+        raise CLIError(f"--out = {str(out)!r} is not allowed: must be a folder")
+    if out.is_dir() and any(out.iterdir()) and not args.force:
+        raise CLIError(
+            f"--out = {str(out)!r} is not allowed: must be a new or empty folder (it "
+            "holds files; add --force to replace the ones reproduce writes)"
+        )
+    reproduce(out, preset=args.preset, t_end=args.t_end)
     return 0
 
 
@@ -693,6 +792,9 @@ def _parser() -> argparse.ArgumentParser:
             "control."
         ),
     )
+    from . import __version__
+
+    top.add_argument("--version", action="version", version=f"smibjax {__version__}")
     sub = top.add_subparsers(dest="command", required=True, parser_class=_Parser)
     s = sub.add_parser("simulate", help="one closed-loop run: summary, npz, plot")
     s._sub = "simulate"
@@ -708,21 +810,27 @@ def _parser() -> argparse.ArgumentParser:
         help="lam in (0, 1), from the SVC bus",
     )
     s.add_argument("--fault-reactance", type=float, default=0.0, help="Xf >= 0 (pu)")
-    s.add_argument("--t-end", type=float, default=10.0, help="horizon (s)")
+    s.add_argument("--t-end", type=_tolerance, default=10.0, help="horizon (s)")
     s.add_argument(
         "--dt-save",
-        type=float,
+        type=_tolerance,
         default=0.01,
         help="sampling interval of the output (s), default 0.01",
     )
     s.add_argument("--out", metavar="FILE.npz", help="write the trajectory")
-    s.add_argument("--plot", metavar="FILE.png", help="plot every signal")
+    s.add_argument(
+        "--plot",
+        metavar="FILE.png",
+        help="plot every signal, in the format of the suffix (.png, .pdf, .svg, ...)",
+    )
+    _add_force(s)
     s.set_defaults(func=_cmd_simulate)
     r = sub.add_parser("reproduce", help="the paper's section 4 case, figures + table")
     r._sub = "reproduce"
     r.add_argument("--out", default="results/reproduce", help="output folder")
     r.add_argument("--preset", choices=["paper", "realistic"], default="paper")
-    r.add_argument("--t-end", type=float, default=10.0, help="horizon (s)")
+    r.add_argument("--t-end", type=_tolerance, default=10.0, help="horizon (s)")
+    _add_force(r)
     r.set_defaults(func=_cmd_reproduce)
 
     m = sub.add_parser(
@@ -749,7 +857,7 @@ def _parser() -> argparse.ArgumentParser:
     _add_tolerances(c)
     c.add_argument(
         "--t-end",
-        type=float,
+        type=_tolerance,
         default=10.0,
         help="horizon of every run (s), after --reclose-time (default 10)",
     )
@@ -762,6 +870,7 @@ def _parser() -> argparse.ArgumentParser:
         "definition)",
     )
     c.add_argument("--out", metavar="FILE.json", help="write the CCTs (+ a .png plot)")
+    _add_force(c)
     c.set_defaults(func=_cmd_cct)
 
     k = sub.add_parser(

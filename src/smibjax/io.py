@@ -17,13 +17,27 @@ except ModuleNotFoundError:  # pragma: no cover
 
 __all__ = [
     "read_data",
+    "read_utf8",
     "read_table",
     "read_gains",
     "atomic_write",
     "write_text",
     "write_json",
     "write_npz",
+    "file_mode",
+    "check_new_file",
 ]
+
+
+def read_utf8(path: str | os.PathLike) -> str:
+    """The text of a UTF-8 file; any other encoding is a one-line `ParameterError`."""
+    try:
+        return Path(path).read_text(encoding="utf-8")
+    except UnicodeDecodeError as e:
+        raise ParameterError(
+            f"file {str(path)!r} is not allowed: must be UTF-8 text (byte "
+            f"0x{e.object[e.start]:02x} at offset {e.start} is not)"
+        ) from None
 
 
 def read_data(path: str | os.PathLike):
@@ -31,7 +45,7 @@ def read_data(path: str | os.PathLike):
     p = Path(path)
     if not p.is_file():
         raise ParameterError(f"file {str(p)!r} does not exist or is not a file")
-    text = p.read_text()
+    text = read_utf8(p)
     try:
         if p.suffix.lower() == ".toml":
             return tomllib.loads(text)
@@ -92,11 +106,37 @@ def atomic_write(path: str | os.PathLike, write: Callable[[str], None]) -> Path:
     os.close(fd)
     try:
         write(tmp)
+        os.chmod(tmp, file_mode())  # mkstemp creates 0600: honour the user's umask
         os.replace(tmp, p)
     except BaseException:
         if os.path.exists(tmp):
             os.unlink(tmp)
         raise
+    return p
+
+
+def file_mode() -> int:
+    """The mode a new file gets from open(): 0o666 without the process's umask."""
+    mask = os.umask(0o022)  # reading the umask means setting it: put it back at once
+    os.umask(mask)
+    return 0o666 & ~mask
+
+
+def check_new_file(
+    path: str | os.PathLike, force: bool = False, option: str = "--out"
+) -> Path:
+    """`path`, unless it names a folder, or an existing file and not `force` (a
+    user-named output file is never replaced silently)."""
+    p = Path(path)
+    if p.is_dir():
+        raise ParameterError(
+            f"{option} = {str(p)!r} is not allowed: must be a file name (it is a folder)"
+        )
+    if p.exists() and not force:
+        raise ParameterError(
+            f"{option} = {str(p)!r} is not allowed: must be a new file (it exists; "
+            "add --force to replace it)"
+        )
     return p
 
 

@@ -3,7 +3,8 @@
 All functions are pure jnp, so they jit and vmap with `simulate`. Settling times are
 measured from fault inception: the last time after t_fault at which the signal is
 outside its band, located by linear interpolation between samples, minus t_fault
-(0 if the signal never leaves the band, inf if it is still outside at t_end).
+(0 if the signal never leaves the band, inf if it is still outside at t_end). A run
+that spent the solver's step budget before t_end has no metrics: NaN ("not reached").
 """
 
 from __future__ import annotations
@@ -108,7 +109,7 @@ def metrics(
 ) -> Metrics:
     """Exact metrics of a trajectory; bands in rad, pu and rad/s."""
     t, tf = traj.t, traj.t_fault
-    return Metrics(
+    m = Metrics(
         stable=is_stable(
             traj.lost_sync | traj.budget_exhausted,
             traj.delta[-1],
@@ -136,4 +137,20 @@ def metrics(
         B_max=jnp.max(traj.B),
         E_min=jnp.min(traj.E),
         E_max=jnp.max(traj.E),
+    )
+    return _not_reached(traj, m)
+
+
+def _not_reached(traj: Trajectory, m: Metrics) -> Metrics:
+    """A run whose solver spent its step budget before t_end never got there: every
+    metric but `stable` (False) is "not reached" (NaN), never a number measured on the
+    part it did run (`--max-steps 1` would otherwise settle in 0 s with no
+    overshoot)."""
+    stop = traj.budget_exhausted
+    return m._replace(
+        **{
+            k: jnp.where(stop, jnp.nan, v)
+            for k, v in m._asdict().items()
+            if k != "stable"
+        }
     )

@@ -16,6 +16,7 @@ import dataclasses
 import functools
 import json
 import math
+import numbers
 import time
 from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
@@ -25,7 +26,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ._validate import require_count, require_positive
+from ._validate import require_count, require_positive, require_samples
 from .controller import static_alpha
 from .controllers import CONTROLLERS, EstimateBox, Synergetic, make_controller
 from .io import write_json, write_npz, write_text
@@ -129,7 +130,23 @@ class MonteCarloSpec:
             )
         for name in ("t_end", "dt_save", "rtol", "atol"):
             require_positive(name, getattr(self, name))
-        ScenarioDistribution.from_dict(self.dist)  # validates
+        require_samples(self.t_end, self.dt_save)
+        if (
+            isinstance(self.seed, bool)
+            or not isinstance(self.seed, numbers.Integral)
+            or not 0 <= self.seed < 2**32
+        ):
+            raise ParameterError(
+                f"seed = {self.seed!r} is not allowed: must be an integer in [0, 2**32)"
+            )
+        faults = ScenarioDistribution.from_dict(self.dist).faults  # validates
+        latest = faults.t_fault[1] + faults.clear_duration[1]
+        if not latest < self.t_end:
+            raise ParameterError(
+                f"t_end = {self.t_end:g} is not allowed: must be > {latest:g} s, the "
+                "latest clearing time of the scenario distribution (t_fault + "
+                "clear_duration): every fault must happen and clear within the run"
+            )
         self.parameters()  # validates the parameter tables
 
     @property
@@ -492,6 +509,25 @@ def _chunk_path(out: Path, k: int) -> Path:
     return out / "chunks" / f"{k:06d}.npz"
 
 
+def _chunk_ok(out: Path, spec: MonteCarloSpec, k: int) -> bool:
+    """Chunk k is on disk and whole: it loads, and holds the rows of its scenario
+    range in every column. A chunk that is not (truncated or damaged by something
+    other than this program's atomic writes) is recomputed."""
+    path = _chunk_path(out, k)
+    if not path.is_file():
+        return False
+    start, stop = spec.chunk_range(k)
+    try:
+        with np.load(path) as z:
+            cols = {c: np.asarray(z[c]) for c in z.files}
+    except Exception:  # a truncated zip raises BadZipFile, EOFError, ValueError...
+        return False
+    must = [c for c in COLUMNS if c != "budget_exhausted"]  # older chunks lack it
+    return all(
+        c in cols and cols[c].shape == (stop - start,) for c in must
+    ) and np.array_equal(cols["index"], np.arange(start, stop))
+
+
 def _check_resume(out: Path, spec: MonteCarloSpec) -> dict:
     manifest = out / "run.json"
     if not manifest.is_file():
@@ -539,7 +575,7 @@ def run_montecarlo(
             )
         manifest = {"spec": spec.to_dict(), "complete": False}
         write_json(out / "run.json", manifest)
-    todo = [k for k in range(spec.n_chunks) if not _chunk_path(out, k).is_file()]
+    todo = [k for k in range(spec.n_chunks) if not _chunk_ok(out, spec, k)]
     done_rows = spec.n - sum(
         spec.chunk_range(k)[1] - spec.chunk_range(k)[0] for k in todo
     )

@@ -21,7 +21,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
 
-from ._validate import ParameterError, is_concrete, require
+from ._validate import ParameterError, is_concrete, require, require_finite
 
 __all__ = [
     "Plant",
@@ -65,7 +65,9 @@ class Plant(eqx.Module):
     """Physical parameters of the SMIB + SVC plant (per unit unless stated).
 
     Paper defaults (MODEL.md section 1). The input limits default to none (the paper);
-    `Plant.preset("realistic")` bounds u_f to [-5, 5] and u_r to [-1, 1].
+    `Plant.preset("realistic")` bounds u_f to [-5, 5] and u_r to [-1, 1]. Every value
+    must be finite with |value| <= 1e6 (`MAX_MAGNITUDE`: beyond it the model's products
+    overflow), except the input limits, which may be +-inf (no limit).
     """
 
     H: Scalar = _field(5.0)  # inertia constant (s)
@@ -90,6 +92,9 @@ class Plant(eqx.Module):
         if p is None:
             return
         o = "Plant"
+        limits = ("uf_min", "uf_max", "ur_min", "ur_max")
+        require_finite(p, o, [n for n in _names(Plant) if n not in limits])
+        require_finite(p, o, limits, bound=None, allow_inf=limits)
         for name in ("H", "T0", "V", "Xdp", "XL", "Tr", "Pm", "f"):
             v = getattr(p, name)
             require(v > 0, o, name, v, "must be > 0")
@@ -144,6 +149,19 @@ PRESETS: dict[str, dict[str, float]] = {
 }
 
 
+GAIN_FIELDS = (
+    "beta1",
+    "beta2",
+    "T1",
+    "T2",
+    "alpha",
+    "gamma1",
+    "gamma2",
+    "k1",
+    "k2",
+)  # the nine gains of the law: finite, whatever else a gain set carries
+
+
 class Gains(eqx.Module):
     """Controller gains of the adaptive synergetic law (MODEL.md section 2).
 
@@ -173,6 +191,7 @@ class Gains(eqx.Module):
         if p is None:
             return
         o = "Gains"
+        require_finite(p, o, GAIN_FIELDS, bound=None)
         for name in ("c1", "c2"):
             v = getattr(p, name)
             require((v > 0) & np.isfinite(v), o, name, v, "must be > 0 (1: the paper)")
@@ -226,6 +245,7 @@ class Fault(eqx.Module):
         if p is None:
             return
         o = "Fault"
+        require_finite(p, o, _names(Fault), bound=None)
         require(
             (p.t_fault >= 0) & np.isfinite(p.t_fault),
             o,
@@ -263,6 +283,7 @@ class OperatingPoint(eqx.Module):
         if p is None:
             return
         o = "OperatingPoint"
+        require_finite(p, o, ("delta_e", "Pm_ref"))
         require(
             (p.delta_e > 0) & (p.delta_e < np.pi / 2),
             o,
@@ -278,15 +299,14 @@ class InitialEstimates(eqx.Module):
 
     th1: Scalar = _field(-0.5)
     th2: Scalar = _field(0.0)
+    # Both finite with |th| <= 1e6 (`MAX_MAGNITUDE`): theta = (-D, Pm) is O(1) per unit,
+    # and 1e308 overflows the control law to NaN.
 
     def __check_init__(self):
         p = _values(self)
         if p is None:
             return
-        o = "InitialEstimates"
-        for name in ("th1", "th2"):
-            v = getattr(p, name)
-            require(np.isfinite(v), o, name, v, "must be finite")
+        require_finite(p, "InitialEstimates", ("th1", "th2"))
 
 
 def _names(cls) -> tuple[str, ...]:

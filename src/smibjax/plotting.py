@@ -1,4 +1,5 @@
-"""Figures of trajectories (matplotlib, Agg backend, written atomically as PNG)."""
+"""Figures of trajectories (matplotlib, Agg backend, written atomically in the format
+their file name's suffix names: .png, .pdf, .svg, ...)."""
 
 from __future__ import annotations
 
@@ -61,8 +62,38 @@ def _panels(ax, runs: dict[str, dict], key: str, col=None, ylabel="", true=None)
     ax.grid(alpha=0.3)
 
 
+def plot_formats() -> list[str]:
+    """File name suffixes (without the dot) of the formats written here: matplotlib's
+    own vector and raster writers (pgf, which needs LaTeX, and the formats that rest
+    on optional Pillow plugins are left out)."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    own = {"eps", "jpeg", "jpg", "pdf", "png", "ps", "svg", "svgz", "tif", "tiff"}
+    return sorted(own & set(FigureCanvasAgg.get_supported_filetypes()))
+
+
+def check_plot_path(path, option: str = "--plot"):
+    """`path` as a Path when its suffix names a format matplotlib writes (.png, .pdf,
+    .svg, ...); otherwise a one-line `ParameterError`."""
+    from pathlib import Path
+
+    from .parameters import ParameterError
+
+    p = Path(path)
+    fmt = p.suffix[1:].lower()
+    formats = plot_formats()
+    if fmt not in formats:
+        raise ParameterError(
+            f"{option} = {str(p)!r} is not allowed: must end in one of "
+            f"{', '.join('.' + f for f in formats)}"
+        )
+    return p
+
+
 def _save(fig, path) -> None:
-    atomic_write(path, lambda tmp: fig.savefig(tmp, dpi=110, format="png"))
+    """Write `fig` in the format its file name's suffix asks for (PNG without one)."""
+    fmt = os.path.splitext(str(path))[1][1:].lower() or "png"
+    atomic_write(path, lambda tmp: fig.savefig(tmp, dpi=110, format=fmt))
     plt.close(fig)
 
 

@@ -10,12 +10,22 @@ __all__ = ["metrics_dict", "format_summary", "markdown_table"]
 
 
 def metrics_dict(m: Metrics) -> dict:
-    """Metrics as plain Python values (inf where not settled)."""
+    """Metrics as plain Python values (inf where not settled, NaN where not reached:
+    written to JSON as null)."""
     return {k: (bool(v) if k == "stable" else float(v)) for k, v in m._asdict().items()}
 
 
-def _s(x: float, unit: str = "s") -> str:
-    return "not settled" if math.isinf(x) else f"{x:.3f} {unit}"
+NOT_REACHED = "not reached (the run stopped before t_end)"
+
+
+def _s(x: float, unit: str = "s", spec: str = ".3f") -> str:
+    if math.isnan(x):
+        return NOT_REACHED
+    return "not settled" if math.isinf(x) else f"{x:{spec}} {unit}"
+
+
+def _g(x: float, spec: str) -> str:
+    return "not reached" if math.isnan(x) else format(x, spec)
 
 
 def format_summary(gains, fault, plant, traj, m: Metrics, args=None) -> str:
@@ -42,9 +52,10 @@ def format_summary(gains, fault, plant, traj, m: Metrics, args=None) -> str:
         f"  settling time delta: {_s(d['settling_delta'])} (band 0.01 rad, from fault)",
         f"  settling time Vt:    {_s(d['settling_Vt'])} (band 0.01 pu)",
         f"  settling time omega: {_s(d['settling_omega'])} (band 0.01 rad/s)",
-        f"  first-swing overshoot: {d['overshoot']:.4f} rad",
-        f"  effort: int u_f^2 = {d['effort_uf']:.4g}, int u_r^2 = {d['effort_ur']:.4g}"
-        f" (pu^2 s); peak |u_f| = {d['peak_uf']:.4g}, |u_r| = {d['peak_ur']:.4g}",
+        f"  first-swing overshoot: {_s(d['overshoot'], 'rad', '.4f')}",
+        f"  effort: int u_f^2 = {_g(d['effort_uf'], '.4g')}, int u_r^2 = "
+        f"{_g(d['effort_ur'], '.4g')} (pu^2 s); peak |u_f| = "
+        f"{_g(d['peak_uf'], '.4g')}, |u_r| = {_g(d['peak_ur'], '.4g')}",
         f"  solver: {int(traj.num_steps)} steps ({int(traj.num_rejected)} rejected)",
     ]
     return "\n".join(lines)
@@ -62,12 +73,17 @@ _COLUMNS = [
 ]
 
 
+def _cell(f, v) -> str:
+    return "not reached" if isinstance(v, float) and math.isnan(v) else f(v)
+
+
 def markdown_table(rows: dict[str, dict]) -> str:
-    """A markdown table of metric dicts, one row per labelled run."""
+    """A markdown table of metric dicts, one row per labelled run ("not reached" where
+    the run stopped before t_end)."""
     head = "| run | " + " | ".join(h for _, h, _ in _COLUMNS) + " |"
     sep = "|---|" + "---|" * len(_COLUMNS)
     body = [
-        f"| {label} | " + " | ".join(f(d[k]) for k, _, f in _COLUMNS) + " |"
+        f"| {label} | " + " | ".join(_cell(f, d[k]) for k, _, f in _COLUMNS) + " |"
         for label, d in rows.items()
     ]
     return "\n".join([head, sep, *body])

@@ -8,9 +8,11 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import math
 
 import jax
 
+from ._validate import MAX_MAGNITUDE
 from .parameters import Fault, ParameterError
 
 __all__ = [
@@ -19,6 +21,19 @@ __all__ = [
     "sample_faults",
     "sample_scenarios",
 ]
+
+
+def _require_finite_range(name: str, lo: float, hi: float, bound=None) -> None:
+    """A range [lo, hi] of finite numbers (within +-bound): an infinite end would
+    draw inf or NaN scenarios."""
+    ok = math.isfinite(lo) and math.isfinite(hi)
+    if ok and bound is not None:
+        ok = max(abs(lo), abs(hi)) <= bound
+    if not ok:
+        within = "" if bound is None else f" with |value| <= {bound:g}"
+        raise ParameterError(
+            f"{name} = [{lo:g}, {hi:g}] is not allowed: must be finite{within}"
+        )
 
 
 @dataclasses.dataclass(frozen=True)
@@ -54,6 +69,7 @@ class FaultDistribution:
                 raise ParameterError(
                     f"{f.name} = {r!r} is not allowed: must be a range [lo, hi]"
                 )
+            _require_finite_range(f.name, lo, hi)
             if not lo <= hi:
                 raise ParameterError(
                     f"{f.name} = [{lo:g}, {hi:g}] is not allowed: empty range (lo > hi)"
@@ -129,6 +145,7 @@ class ScenarioDistribution:
                 raise ParameterError(
                     f"{name} = {r!r} is not allowed: must be a range [lo, hi]"
                 ) from None
+            _require_finite_range(name, lo, hi, MAX_MAGNITUDE)
             if not lo <= hi:
                 raise ParameterError(
                     f"{name} = [{lo:g}, {hi:g}] is not allowed: empty range (lo > hi)"

@@ -37,7 +37,13 @@ from jaxtyping import Array, Bool, Float, Int
 
 from ._fixed import solve_fixed
 from ._stepping import RigidSteps
-from ._validate import require_count, require_positive
+from ._validate import (
+    is_concrete,
+    require_count,
+    require_in_horizon,
+    require_positive,
+    require_samples,
+)
 from .closed_loop import (
     ClosedLoop,
     as_controller,
@@ -375,6 +381,9 @@ def simulate(
     if max_steps is None:
         max_steps = 50_000
     require_count("max_steps", max_steps)
+    require_samples(t_end, dt_save)
+    if is_concrete(fault.t_fault, fault.t_clear):
+        require_in_horizon(fault.t_fault, fault.t_clear, t_end)
     return _simulate(
         controller,
         fault,
