@@ -47,6 +47,7 @@ import numpy as np
 
 from ._validate import require_count, require_positive, require_samples
 from .controller import static_alpha
+from .controllers import Synergetic
 from .metrics import metrics
 from .parallel import device_map
 from .parameters import (
@@ -66,6 +67,26 @@ CRITERIA = ("settled", "synchronism")
 STATUSES = ("ok", "non_monotone", "exceeds_window", "unstable_at_min")
 
 MIN_TOL = 1e-9  # s: a finer bisection is below the solver's accuracy
+
+
+def _static_alpha(g, alpha_one: bool):
+    """`static_alpha` for a lane's parameters: `Gains` or a `Synergetic` controller
+    (other controllers have no alpha)."""
+    if isinstance(g, Gains):
+        return static_alpha(g, alpha_one)
+    if isinstance(g, Synergetic):
+        gains = static_alpha(g.gains, alpha_one)
+        return Synergetic(gains, g.oracle, g.projection, g.phi_layer)
+    return g
+
+
+def _alpha(g):
+    """alpha of a lane's parameters (None for a controller without one)."""
+    if isinstance(g, Gains):
+        return float(g.alpha)
+    if isinstance(g, Synergetic):
+        return float(g.gains.alpha)
+    return None
 
 
 def _stable_batch_fn(
@@ -90,7 +111,7 @@ def _stable_batch_fn(
         gains, fault = lanes
 
         def one(g, f):
-            g = static_alpha(g, alpha_one)
+            g = _static_alpha(g, alpha_one)
             tr = simulate(
                 g,
                 f,
@@ -159,7 +180,7 @@ def _check_window(fault_time, reclose_time, t_end, tol, scan_step) -> float:
 
 
 def critical_clearing_times(
-    gain_sets: dict[str, Gains],
+    gain_sets: dict,
     plant: Plant | None = None,
     *,
     op: OperatingPoint | None = None,
@@ -180,6 +201,9 @@ def critical_clearing_times(
 ) -> dict:
     """CCT (s) of every gain set at every fault location (module docstring: scan,
     then bisection in the first unstable bracket).
+
+    `gain_sets`: name -> the paper's `Gains` (run with `adaptation`) or a controller
+    (`smibjax.controllers`); all of one kind, since the lanes are stacked.
 
     `tol` (s): bisection tolerance and shortest duration tried; `scan_step` (s): the
     scan's spacing (at most; the window is split evenly); `criterion`: "settled" or
@@ -225,7 +249,7 @@ def critical_clearing_times(
     lam = np.asarray([p[1] for p in pairs])
     n_lanes = len(pairs)
 
-    alpha_one = all(float(gain_sets[n].alpha) == 1.0 for n in names)
+    alpha_one = all(_alpha(gain_sets[n]) == 1.0 for n in names)
     require_count("max_steps", max_steps)
     require_positive("rtol", rtol)
     require_positive("atol", atol)

@@ -42,12 +42,15 @@ class _Parser(argparse.ArgumentParser):
 
 
 def _add_common(p: argparse.ArgumentParser) -> None:
+    from .controllers import CONTROLLERS
+
     p.add_argument(
         "--controller",
-        choices=["aftsc", "asc"],
+        choices=list(CONTROLLERS),
         default=None,
-        help="AFTSC (alpha = 5/7) or ASC (alpha = 1); default: the gains file's, "
-        "else aftsc",
+        help="aftsc (alpha = 5/7), asc (alpha = 1), none (E_fd0 held, u_r = 0) or "
+        "avr-pss (exciter + PSS + SVC regulator); default: the gains file's, else "
+        "aftsc",
     )
     p.add_argument(
         "--preset",
@@ -151,10 +154,12 @@ def build_parameters(
     gain_values=None,
     plant_values=None,
 ):
-    """(Gains, Plant, OperatingPoint, InitialEstimates) from the CLI's options: the
-    paper's gains for `controller`, then the gains file's values (or `gain_values`,
-    already read; with `complete`, all nine gains), then `--set` values; the plant
-    `preset`, then `plant_values` (a gains file's plant context), then `--set`."""
+    """(parameters, Plant, OperatingPoint, InitialEstimates) from the CLI's options:
+    the controller's defaults (the paper's `Gains` for aftsc/asc, else the controller
+    itself), then the gains file's values (or `gain_values`, already read; with
+    `complete`, all nine gains), then `--set` values; the plant `preset`, then
+    `plant_values` (a gains file's plant context), then `--set`."""
+    from .controllers import CONTROLLERS, Synergetic, make_controller
     from .io import read_gains
     from .parameters import (
         GAIN_NAMES,
@@ -169,8 +174,12 @@ def build_parameters(
     if gain_values is None:
         gain_values = read_gains(gains_file, complete=complete) if gains_file else {}
     groups = {"gains": {}, "plant": {}, "op": {}, "init": {}}
+    synergetic = CONTROLLERS[controller] is Synergetic
+    names = (
+        GAIN_NAMES if synergetic else tuple(CONTROLLERS[controller].parameter_kinds())
+    )
     owners = {
-        **{n: "gains" for n in GAIN_NAMES},
+        **{n: "gains" for n in names},
         **{n: "plant" for n in PLANT_NAMES},
         "delta_e": "op",
         "Pm_ref": "op",
@@ -183,13 +192,37 @@ def build_parameters(
                 f"--set {name}: unknown name; allowed are {', '.join(owners)}"
             )
         groups[owners[name]][name] = value
-    gains = Gains.paper(controller, **{**gain_values, **groups["gains"]})
+    values = {**gain_values, **groups["gains"]}
+    if synergetic:
+        gains = Gains.paper(controller, **values)
+    else:
+        gains = make_controller(controller, values)
     plant = Plant.preset(preset, **{**(plant_values or {}), **groups["plant"]})
     return (
         gains,
         plant,
         OperatingPoint(**groups["op"]),
         InitialEstimates(**groups["init"]),
+    )
+
+
+def _controller_of(args, params):
+    """The controller that runs: `params` itself (none, avr-pss) or the paper's law
+    with `params` as gains, the adaptation and the options (projection, phi_layer)
+    of the resolved context."""
+    from .controllers import EstimateBox, Synergetic
+    from .parameters import Gains
+
+    if not isinstance(params, Gains):
+        return params
+    opts = getattr(args, "context", None)
+    opts = opts.options if opts is not None else {}
+    box = opts.get("projection") or []
+    return Synergetic(
+        params,
+        oracle=args.adaptation != "realizable",
+        projection=EstimateBox(*zip(*box, strict=True)) if box else None,
+        phi_layer=float(opts.get("phi_layer", 0.0)),
     )
 
 
@@ -267,12 +300,11 @@ def _cmd_simulate(args) -> int:
         Xf=args.fault_reactance,
     )
     traj = simulate(
-        gains,
+        _controller_of(args, gains),
         fault,
         plant,
         op=op,
         init=init,
-        adaptation=args.adaptation,
         t_end=args.t_end,
         dt_save=args.dt_save,
         rtol=args.rtol,
@@ -285,7 +317,7 @@ def _cmd_simulate(args) -> int:
     arrays = trajectory_arrays(traj)
     if args.out:
         meta = {
-            "gains": {k: float(getattr(gains, k)) for k in gains.__dataclass_fields__},
+            "gains": _parameter_values(gains),
             "fault": {k: float(getattr(fault, k)) for k in fault.__dataclass_fields__},
             "plant": {k: float(getattr(plant, k)) for k in plant.__dataclass_fields__},
             "adaptation": args.adaptation,
@@ -385,9 +417,19 @@ def _fresh_out(kind: str) -> Path:
     return Path("runs") / f"{kind}-{stamp}"
 
 
+def _parameter_values(params) -> dict[str, float]:
+    """A parameter set's tunable values (the paper's nine gains plus c1, c2, or a
+    controller's own), as plain floats."""
+    from .parameters import GAIN_NAMES, Gains
+
+    if isinstance(params, Gains):
+        return {k: float(getattr(params, k)) for k in GAIN_NAMES}
+    return params.parameters()
+
+
 def _spec_from_args(args, gains, plant, op, init, dist):
     from .montecarlo import MonteCarloSpec
-    from .parameters import GAIN_NAMES, PLANT_NAMES
+    from .parameters import PLANT_NAMES
 
     if args.n < 1:
         raise CLIError(f"--n {args.n} is not allowed: must be >= 1")
@@ -397,12 +439,14 @@ def _spec_from_args(args, gains, plant, op, init, dist):
         n=args.n,
         seed=args.seed,
         chunk=min(args.chunk, args.n),
-        gains={k: float(getattr(gains, k)) for k in GAIN_NAMES},
+        gains=_parameter_values(gains),
         plant={k: float(getattr(plant, k)) for k in PLANT_NAMES},
         op={"delta_e": float(op.delta_e), "Pm_ref": float(op.Pm_ref)},
         init={"th1": float(init.th1), "th2": float(init.th2)},
         dist=dist.to_dict(),
         adaptation=args.adaptation,
+        controller=args.controller,
+        options=dict(getattr(args.context, "options", {}) or {}),
         t_end=args.t_end,
         rtol=args.rtol,
         atol=args.atol,

@@ -31,7 +31,16 @@ def _g(x: float, spec: str) -> str:
 def format_summary(gains, fault, plant, traj, m: Metrics, args=None) -> str:
     """A few lines: verdict, settling times, overshoot, effort, solver steps."""
     d = metrics_dict(m)
-    c = "AFTSC" if float(gains.alpha) < 1 else "ASC"
+    if hasattr(gains, "alpha"):
+        c = "AFTSC" if float(gains.alpha) < 1 else "ASC"
+        head = (
+            f"{c} (alpha = {float(gains.alpha):.4g}, beta = {float(gains.beta1):g}/"
+            f"{float(gains.beta2):g})"
+        )
+    else:
+        head = {"NoControl": "no control", "AvrPss": "AVR + PSS + SVC regulator"}.get(
+            type(gains).__name__, type(gains).__name__
+        )
     if bool(traj.lost_sync):
         verdict = f"UNSTABLE: lost synchronism at t = {float(traj.t_stop):.3f} s"
     elif bool(traj.budget_exhausted):
@@ -44,8 +53,7 @@ def format_summary(gains, fault, plant, traj, m: Metrics, args=None) -> str:
     else:
         verdict = "UNSTABLE: delta not back in its band at t_end"
     lines = [
-        f"{c} (alpha = {float(gains.alpha):.4g}, beta = {float(gains.beta1):g}/"
-        f"{float(gains.beta2):g}); fault {float(fault.t_fault):g} s, cleared "
+        f"{head}; fault {float(fault.t_fault):g} s, cleared "
         f"{float(fault.t_clear):g} s, reclosed {float(fault.t_reclose):g} s, "
         f"lam = {float(fault.lam):g}, Xf = {float(fault.Xf):g}",
         f"  result:              {verdict}",
@@ -56,6 +64,14 @@ def format_summary(gains, fault, plant, traj, m: Metrics, args=None) -> str:
         f"  effort: int u_f^2 = {_g(d['effort_uf'], '.4g')}, int u_r^2 = "
         f"{_g(d['effort_ur'], '.4g')} (pu^2 s); peak |u_f| = "
         f"{_g(d['peak_uf'], '.4g')}, |u_r| = {_g(d['peak_ur'], '.4g')}",
+        f"  commanded (before limits): peak |u_f| = {_g(d['peak_uf_cmd'], '.4g')}, "
+        f"|u_r| = {_g(d['peak_ur_cmd'], '.4g')}; time on a limit: u_f "
+        f"{_g(d['limit_time_uf'], '.3f')}, u_r {_g(d['limit_time_ur'], '.3f')}",
+        f"  chatter (total variation): u_f {_g(d['tv_uf'], '.4g')}, u_r "
+        f"{_g(d['tv_ur'], '.4g')} pu",
+        f"  ranges: Vt {_g(d['Vt_min'], '.3f')}..{_g(d['Vt_max'], '.3f')}, B "
+        f"{_g(d['B_min'], '.3f')}..{_g(d['B_max'], '.3f')}, E' "
+        f"{_g(d['E_min'], '.3f')}..{_g(d['E_max'], '.3f')} pu",
         f"  solver: {int(traj.num_steps)} steps ({int(traj.num_rejected)} rejected)",
     ]
     return "\n".join(lines)
