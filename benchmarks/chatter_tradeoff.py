@@ -1,0 +1,113 @@
+"""Settling against chatter: the default tuning run for several weights of the loss's
+`chatter` term (issue 13, "No bang-bang by accident"), and the cross-entropy search on
+the same problem for reference; every result on the same validation set.
+
+    python benchmarks/chatter_tradeoff.py [--weights 0 0.3 1] [--n-val 64]
+    python benchmarks/chatter_tradeoff.py --from-runs w=0:DIR w=0.3:DIR search:DIR
+
+Each run is `python -m tuning.optimize` on the default config with `[loss] chatter`
+set (and `[validation] n`); `--from-runs` reads finished run folders instead (their
+checkpoint's last validation, the step `gains.json` was selected at). Writes
+benchmarks/results/chatter_tradeoff.json and docs/figures/chatter_tradeoff.png.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import pickle
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _best(run: Path) -> dict:
+    blob = pickle.loads((run / "checkpoint.pkl").read_bytes())
+    return blob["best"]["summary"]
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--weights", type=float, nargs="+", default=[0.0, 0.3, 1.0])
+    ap.add_argument("--n-val", type=int, default=64)
+    ap.add_argument("--from-runs", nargs="+", metavar="LABEL:DIR")
+    ap.add_argument("--out", default=str(ROOT / "benchmarks" / "results"))
+    args = ap.parse_args(argv)
+    rows = {}
+    if args.from_runs:
+        for item in args.from_runs:
+            label, _, path = item.partition(":")
+            rows[label] = _best(Path(path))
+    else:
+        for w in args.weights:
+            with tempfile.TemporaryDirectory() as tmp:
+                cfg = Path(tmp) / "c.toml"
+                cfg.write_text(
+                    f"[loss]\nchatter = {w}\n[validation]\nn = {args.n_val}\n"
+                )
+                run = Path(tmp) / "run"
+                subprocess.run(
+                    [
+                        sys.executable,
+                        "-m",
+                        "tuning.optimize",
+                        "--config",
+                        str(cfg),
+                        "--out",
+                        str(run),
+                        "--quiet",
+                    ],
+                    check=True,
+                    cwd=ROOT,
+                )
+                rows[f"w={w:g}"] = _best(run)
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "chatter_tradeoff.json").write_text(json.dumps(rows, indent=1))
+    print(
+        f"{'run':10} {'stable':>7} {'mean ts':>8} {'p95 ts':>7} {'TV u_f':>8} "
+        f"{'TV u_r':>7}"
+    )
+    for k, v in rows.items():
+        print(
+            f"{k:10} {v['stable_fraction']:7.3f} {v['settling_delta_mean']:8.3f} "
+            f"{v['settling_delta_p95']:7.3f} {v['tv_uf_mean']:8.1f} "
+            f"{v['tv_ur_mean']:7.1f}"
+        )
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(6, 4))
+    for k, v in rows.items():
+        marker = "s" if k.startswith("search") else "o"
+        ax.plot(v["tv_uf_mean"], v["settling_delta_mean"], marker, ms=8)
+        ax.errorbar(
+            v["tv_uf_mean"],
+            v["settling_delta_mean"],
+            yerr=[[0], [v["settling_delta_p95"] - v["settling_delta_mean"]]],
+            color="grey",
+            capsize=3,
+        )
+        ax.annotate(
+            k,
+            (v["tv_uf_mean"], v["settling_delta_mean"]),
+            textcoords="offset points",
+            xytext=(6, 4),
+        )
+    ax.set_xlabel("mean total variation of the applied u_f (pu): chatter")
+    ax.set_ylabel("mean delta settling (s); bar to p95")
+    ax.set_title("Realistic limits, realizable adaptation, D drawn", fontsize=9)
+    ax.grid(alpha=0.3)
+    ax.margins(x=0.35, y=0.15)
+    fig.tight_layout()
+    fig.savefig(ROOT / "docs" / "figures" / "chatter_tradeoff.png", dpi=110)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
