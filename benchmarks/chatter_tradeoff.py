@@ -7,7 +7,7 @@ the same problem for reference; every result on the same validation set.
 
 Each run is `python -m tuning.optimize` on the default config with `[loss] chatter`
 set (and `[validation] n`); `--from-runs` reads finished run folders instead (their
-checkpoint's last validation, the step `gains.json` was selected at). Writes
+`gains.json`). Every set is scored on the default config's validation set. Writes
 benchmarks/results/chatter_tradeoff.json and docs/figures/chatter_tradeoff.png.
 """
 
@@ -15,24 +15,42 @@ from __future__ import annotations
 
 import argparse
 import json
-import pickle
 import subprocess
 import sys
 import tempfile
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
 
 
-def _best(run: Path) -> dict:
-    blob = pickle.loads((run / "checkpoint.pkl").read_bytes())
-    return blob["best"]["summary"]
+def _best(run: Path, n_val: int) -> dict:
+    """The exact validation summary of `run/gains.json` on the default config's
+    validation set of `n_val` scenarios (the same set for every run)."""
+    import jax
+    import numpy as np
+
+    from smibjax import gainsfile
+    from tuning.config import load_config
+    from tuning.optimize import build
+    from tuning.train import draw_scenarios, make_validate, summarize
+
+    cfg = load_config()
+    cfg["validation"]["n"] = n_val
+    _, _, setup, dist, _ = build(cfg)
+    val = draw_scenarios(
+        jax.random.PRNGKey(int(cfg["validation"]["seed"])), n_val, dist, setup.plant
+    )
+    gf = gainsfile.read(run / "gains.json")
+    params = setup.space.make(**{**setup.space.frozen, **gf.gains})
+    m = make_validate(setup)(params, val)
+    return summarize(jax.tree_util.tree_map(np.asarray, m))
 
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--weights", type=float, nargs="+", default=[0.0, 0.3, 1.0])
-    ap.add_argument("--n-val", type=int, default=64)
+    ap.add_argument("--n-val", type=int, default=256)
     ap.add_argument("--from-runs", nargs="+", metavar="LABEL:DIR")
     ap.add_argument("--out", default=str(ROOT / "benchmarks" / "results"))
     args = ap.parse_args(argv)
@@ -40,7 +58,7 @@ def main(argv=None) -> int:
     if args.from_runs:
         for item in args.from_runs:
             label, _, path = item.partition(":")
-            rows[label] = _best(Path(path))
+            rows[label] = _best(Path(path), args.n_val)
     else:
         for w in args.weights:
             with tempfile.TemporaryDirectory() as tmp:
@@ -63,7 +81,7 @@ def main(argv=None) -> int:
                     check=True,
                     cwd=ROOT,
                 )
-                rows[f"w={w:g}"] = _best(run)
+                rows[f"w={w:g}"] = _best(run, args.n_val)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     (out / "chatter_tradeoff.json").write_text(json.dumps(rows, indent=1))

@@ -445,8 +445,8 @@ def _spec_from_args(args, gains, plant, op, init, dist):
         init={"th1": float(init.th1), "th2": float(init.th2)},
         dist=dist.to_dict(),
         adaptation=args.adaptation,
-        controller=args.controller,
-        options=dict(getattr(args.context, "options", {}) or {}),
+        controller=args.controller or "",
+        options=dict(getattr(getattr(args, "context", None), "options", {}) or {}),
         t_end=args.t_end,
         rtol=args.rtol,
         atol=args.atol,
@@ -540,7 +540,7 @@ def _cct_sets(args):
     out, common = {}, None
     for c in dict.fromkeys(controllers):
         gains, plant, op, init = _build_from_args(args, complete=True, controller=c)
-        out[args.context.controller] = gains
+        out[args.context.controller] = _controller_of(args, gains)
         args.contexts = {
             **getattr(args, "contexts", {}),
             **{args.context.controller: args.context.describe()},
@@ -641,6 +641,27 @@ def _print_cct(res: dict) -> None:
                 )
 
 
+def _lane_kind(ctrl) -> tuple:
+    """Controllers that can share one batch of CCT lanes (the same pytree shape)."""
+    from .controllers import Synergetic
+
+    if isinstance(ctrl, Synergetic):
+        return ("Synergetic", ctrl.oracle, ctrl.phi_layer, ctrl.projection is None)
+    return (type(ctrl).__name__,)
+
+
+def _run_cct_grouped(args, sets, plant, op, init) -> dict:
+    """`_run_cct` once per kind of controller (`_lane_kind`), merged in the order of
+    `sets`."""
+    from .compare import merge_cct
+
+    groups: dict[tuple, dict] = {}
+    for name, ctrl in sets.items():
+        groups.setdefault(_lane_kind(ctrl), {})[name] = ctrl
+    results = [_run_cct(args, g, plant, op, init) for g in groups.values()]
+    return results[0] if len(results) == 1 else merge_cct(results, list(sets))
+
+
 def _run_cct(args, sets, plant, op, init) -> dict:
     """`critical_clearing_times` with the CCT options of `args`."""
     from .cct import critical_clearing_times
@@ -681,7 +702,7 @@ def _cmd_cct(args) -> int:
                 "is written beside it as .png)"
             )
     sets, (plant, op, init) = _cct_sets(args)
-    res = _run_cct(args, sets, plant, op, init)
+    res = _run_cct_grouped(args, sets, plant, op, init)
     res["context"] = args.contexts
     _print_cct(res)
     if out is not None:
@@ -729,7 +750,12 @@ def _cmd_compare(args) -> int:
             print(f"== {label}")
             plant, op, init = parts[label]
             args_set = argparse.Namespace(
-                **{**vars(args), "adaptation": contexts[label].adaptation}
+                **{
+                    **vars(args),
+                    "adaptation": contexts[label].adaptation,
+                    "controller": contexts[label].controller,
+                    "context": contexts[label],
+                }
             )
             spec = _spec_from_args(args_set, g, plant, op, init, dist)
             sub = out / label
@@ -744,10 +770,12 @@ def _cmd_compare(args) -> int:
     results = []
     for (adaptation, *_), labels in groups.items():
         plant, op, init = parts[labels[0]]
+        lanes = {}
+        for n in labels:
+            ns = argparse.Namespace(adaptation=adaptation, context=contexts[n])
+            lanes[n] = _controller_of(ns, gain_sets[n])
         args_group = argparse.Namespace(**{**vars(args), "adaptation": adaptation})
-        results.append(
-            _run_cct(args_group, {n: gain_sets[n] for n in labels}, plant, op, init)
-        )
+        results.append(_run_cct_grouped(args_group, lanes, plant, op, init))
     res = merge_cct(results, list(gain_sets))
     write_compare(
         out,

@@ -35,7 +35,19 @@ BUILTIN_SETS = {
     "paper-asc": ("asc", {}),
     "stable": ("aftsc", {"beta1": -1.0, "beta2": -1.0}),
     "stable-asc": ("asc", {"beta1": -1.0, "beta2": -1.0}),
+    "none": ("none", {}),
+    "avr-pss": ("avr-pss", {}),
 }
+
+
+def _parameters(controller: str, values: dict):
+    """The parameter set of `controller`: the paper's `Gains` for aftsc/asc (the
+    controller's alpha), the controller itself otherwise."""
+    from .controllers import CONTROLLERS, Synergetic, make_controller
+
+    if CONTROLLERS[controller] is Synergetic:
+        return Gains.paper(controller, **values)
+    return make_controller(controller, values)
 
 
 def resolve_gain_set_context(
@@ -52,7 +64,8 @@ def resolve_gain_set_context(
     if spec in BUILTIN_SETS:
         controller, values = BUILTIN_SETS[spec]
         ctx, _, messages = resolve(None, controller, adaptation, preset)
-        return spec, Gains.paper(controller, **{**values, **sets}), ctx, messages
+        sets = sets if ctx.controller in ("aftsc", "asc") else {}
+        return spec, _parameters(controller, {**values, **sets}), ctx, messages
     path = Path(spec)
     if not path.exists():
         raise ParameterError(
@@ -64,7 +77,8 @@ def resolve_gain_set_context(
         gf, None, adaptation, preset, source=f"--gains {spec}"
     )
     label = path.stem if path.stem != "gains" else path.parent.name or path.stem
-    return label, Gains.paper(ctx.controller, **{**values, **sets}), ctx, messages
+    sets = sets if ctx.controller in ("aftsc", "asc") else {}
+    return label, _parameters(ctx.controller, {**values, **sets}), ctx, messages
 
 
 def resolve_gain_set(
