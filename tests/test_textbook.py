@@ -50,7 +50,7 @@ def equal_area_cct(lam: float) -> tuple[float, float]:
     return float(sol.t_events[0][0]), d_cr
 
 
-CLASSICAL = sj.Plant(D=0.0, T0=1e9)
+CLASSICAL = sj.Plant(D=0.0, T0=1e6)  # the largest value allowed: E' frozen
 
 
 @pytest.fixture(scope="module")
@@ -86,4 +86,4 @@ def test_no_control_holds_the_operating_point():
     before = np.asarray(tr.t) <= 1.5
     np.testing.assert_allclose(np.asarray(tr.delta)[before], DELTA0, atol=1e-9)
     np.testing.assert_allclose(np.asarray(tr.u_r), 0.0)
-    np.testing.assert_allclose(np.asarray(tr.E), float(tr.E[0]), rtol=1e-9)
+    np.testing.assert_allclose(np.asarray(tr.E), float(tr.E[0]), rtol=1e-8)
