@@ -20,8 +20,8 @@ from tuning.train import draw_scenarios, make_train_step
 PAPER = gains_to_dict(sj.Gains())
 
 
-def tiny_config(**over):
-    cfg = load_config()
+def tiny_config(path=None, **over):
+    cfg = load_config(path)
     cfg.update(steps=4, batch=2, seed=3)
     cfg["validation"].update(n=4, every=2, t_end=4.0)
     cfg["train"].update(t_end=4.0)
@@ -34,13 +34,7 @@ def paper_config(**over):
     """tiny_config on tuning/configs/paper.toml (the paper's case)."""
     from tuning.config import CONFIG_DIR
 
-    cfg = load_config(CONFIG_DIR / "paper.toml")
-    cfg.update(steps=4, batch=2, seed=3)
-    cfg["validation"].update(n=4, every=2, t_end=4.0)
-    cfg["train"].update(t_end=4.0)
-    cfg.update(over)
-    check_config(cfg)
-    return cfg
+    return tiny_config(CONFIG_DIR / "paper.toml", **over)
 
 
 BUILDABLE_START = dict(

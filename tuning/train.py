@@ -19,7 +19,7 @@ import numpy as np
 import smibjax as sj
 from smibjax.controllers import AbstractController, EstimateBox, Synergetic
 from smibjax.losses import LossWeights, aggregate, loss_terms, scenario_loss
-from smibjax.metrics import metrics
+from smibjax.metrics import metrics, physics_summary
 from smibjax.parallel import device_map, shard_batch
 
 from .params import GainSpace
@@ -225,18 +225,7 @@ def summarize(m) -> dict[str, float]:
         "effort_mean": float(
             np.mean(np.asarray(m.effort_uf) + np.asarray(m.effort_ur))
         ),
-        "peak_uf_cmd_max": float(a["peak_uf_cmd"].max()),
-        "peak_ur_cmd_max": float(a["peak_ur_cmd"].max()),
-        "limit_time_uf_mean": float(a["limit_time_uf"].mean()),
-        "limit_time_ur_mean": float(a["limit_time_ur"].mean()),
-        "tv_uf_mean": float(a["tv_uf"].mean()),
-        "tv_ur_mean": float(a["tv_ur"].mean()),
-        "Vt_min": float(a["Vt_min"].min()),
-        "Vt_max": float(a["Vt_max"].max()),
-        "B_min": float(a["B_min"].min()),
-        "B_max": float(a["B_max"].max()),
-        "E_min": float(a["E_min"].min()),
-        "E_max": float(a["E_max"].max()),
+        **physics_summary(a),
     }
 
 

@@ -22,6 +22,8 @@ __all__ = [
     "overshoot",
     "on_limit",
     "total_variation",
+    "physics_summary",
+    "PHYSICS",
     "metrics",
     "DEFAULT_BANDS",
 ]
@@ -99,6 +101,40 @@ def total_variation(u: Float[Array, " n"]) -> Float[Array, ""]:
     """sum |u[i+1] - u[i]| over the samples (pu): 2 (hi - lo) per full swing between
     two limits, so chatter shows as a large value."""
     return jnp.sum(jnp.abs(jnp.diff(u)))
+
+
+PHYSICS = (
+    "peak_uf_cmd",
+    "peak_ur_cmd",
+    "limit_time_uf",
+    "limit_time_ur",
+    "tv_uf",
+    "tv_ur",
+    "Vt_min",
+    "Vt_max",
+    "B_min",
+    "B_max",
+    "E_min",
+    "E_max",
+)
+
+
+def physics_summary(rows) -> dict[str, float]:
+    """What the inputs and the plant did over a set of runs (a mapping of the
+    `PHYSICS` fields to arrays, e.g. `Metrics._asdict()` of a batch or Monte Carlo
+    rows): the largest commanded inputs (pu, before limits), the mean fraction of time
+    on a limit and mean total variation (pu) of each applied input, the ranges of Vt,
+    B and E' (pu) over the whole set."""
+    import numpy as np
+
+    r = {k: np.asarray(rows[k], dtype=float) for k in PHYSICS}
+    out = {f"{k}_max": float(r[k].max()) for k in ("peak_uf_cmd", "peak_ur_cmd")}
+    for k in ("limit_time_uf", "limit_time_ur", "tv_uf", "tv_ur"):
+        out[f"{k}_mean"] = float(r[k].mean())
+    for q in ("Vt", "B", "E"):
+        out[f"{q}_min"] = float(r[f"{q}_min"].min())
+        out[f"{q}_max"] = float(r[f"{q}_max"].max())
+    return out
 
 
 def metrics(

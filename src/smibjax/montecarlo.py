@@ -30,7 +30,7 @@ from ._validate import require_count, require_positive, require_samples
 from .controller import static_alpha
 from .controllers import CONTROLLERS, EstimateBox, Synergetic, make_controller
 from .io import write_json, write_npz, write_text
-from .metrics import metrics
+from .metrics import PHYSICS, metrics, physics_summary
 from .parallel import device_map
 from .parameters import Gains, InitialEstimates, OperatingPoint, ParameterError, Plant
 from .scenarios import ScenarioDistribution, sample_scenarios
@@ -84,7 +84,7 @@ COLUMNS = (
     "E_max",
     "num_steps",  # accepted solver steps
 )
-_PHYSICS = COLUMNS[COLUMNS.index("peak_uf_cmd") : COLUMNS.index("num_steps")]
+_PHYSICS = PHYSICS
 _INT_COLUMNS = ("index", "stable", "lost_sync", "budget_exhausted", "num_steps")
 
 
@@ -412,23 +412,9 @@ def summarize(rows: dict[str, np.ndarray]) -> dict:
 
 
 def _physics(rows) -> dict:
-    """What the inputs and the plant did over all scenarios (pu): the largest commanded
-    inputs, mean time on a limit and total variation of each applied input, the ranges
-    of Vt, B and E'. Rows from before these columns existed give {}."""
-    if "peak_uf_cmd" not in rows:
-        return {}
-    r = {k: np.asarray(rows[k], dtype=float) for k in _PHYSICS}
-    return {
-        "peak_uf_cmd_max": float(r["peak_uf_cmd"].max()),
-        "peak_ur_cmd_max": float(r["peak_ur_cmd"].max()),
-        "limit_time_uf_mean": float(r["limit_time_uf"].mean()),
-        "limit_time_ur_mean": float(r["limit_time_ur"].mean()),
-        "tv_uf_mean": float(r["tv_uf"].mean()),
-        "tv_ur_mean": float(r["tv_ur"].mean()),
-        "Vt_range": [float(r["Vt_min"].min()), float(r["Vt_max"].max())],
-        "B_range": [float(r["B_min"].min()), float(r["B_max"].max())],
-        "E_range": [float(r["E_min"].min()), float(r["E_max"].max())],
-    }
+    """`metrics.physics_summary` of the rows ({} for rows from before these columns
+    existed)."""
+    return physics_summary(rows) if "peak_uf_cmd" in rows else {}
 
 
 def summary_markdown(summary: dict, title: str = "Monte Carlo") -> str:
@@ -475,9 +461,9 @@ def summary_markdown(summary: dict, title: str = "Monte Carlo") -> str:
             f"{ph['limit_time_uf_mean']:.3f} / {ph['limit_time_ur_mean']:.3f}",
             f"- mean total variation (chatter) of u_f / u_r: {ph['tv_uf_mean']:.4g} / "
             f"{ph['tv_ur_mean']:.4g}",
-            f"- ranges: Vt {ph['Vt_range'][0]:.3f}..{ph['Vt_range'][1]:.3f}, "
-            f"B {ph['B_range'][0]:.3f}..{ph['B_range'][1]:.3f}, "
-            f"E' {ph['E_range'][0]:.3f}..{ph['E_range'][1]:.3f}",
+            f"- ranges: Vt {ph['Vt_min']:.3f}..{ph['Vt_max']:.3f}, "
+            f"B {ph['B_min']:.3f}..{ph['B_max']:.3f}, "
+            f"E' {ph['E_min']:.3f}..{ph['E_max']:.3f}",
         ]
     return "\n".join(lines) + "\n"
 
