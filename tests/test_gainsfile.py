@@ -141,7 +141,8 @@ def test_round_trip_every_command_uses_the_context(
     assert main(argv) == 0
     sets, plant, kw = seen.pop()
     assert kw["adaptation"] == "realizable" and float(plant.uf_max) == 5.0
-    assert list(sets) == ["aftsc"] and float(sets["aftsc"].beta1) == -1.0
+    assert list(sets) == ["aftsc"] and float(sets["aftsc"].gains.beta1) == -1.0
+    assert sets["aftsc"].oracle is False  # the lanes run the realizable law
     assert json.loads(cct.read_text())["context"]["aftsc"]["adaptation"] == (
         "realizable"
     )

@@ -441,7 +441,7 @@ def run(
     return state
 
 
-def _gains_file(cfg: dict, gains, names) -> gainsfile.GainsFile:
+def _gains_file(cfg: dict, gains, names=None) -> gainsfile.GainsFile:
     """The gains with what they were tuned for (schema smibjax.gains/1): controller,
     adaptation mode, the controller's options and the plant preset with its finite
     input limits (pu)."""
@@ -449,10 +449,10 @@ def _gains_file(cfg: dict, gains, names) -> gainsfile.GainsFile:
     limits = {k: float(getattr(plant, k)) for k in ("uf_min", "uf_max")}
     limits.update({k: float(getattr(plant, k)) for k in ("ur_min", "ur_max")})
     limits = {k: v for k, v in limits.items() if np.isfinite(v)}  # none: no limit
-    values = gains_to_dict(gains, names)
     controller = cfg["controller"]
+    values = gains_to_dict(gains, names or parameter_names(cfg))
     options = {}
-    if CONTROLLERS[controller] is Synergetic:
+    if CONTROLLERS[controller] is Synergetic and "options" in cfg:
         # alpha = 1 is the ASC law whatever the start (a logit can round up to 1.0)
         controller = "asc" if values["alpha"] == 1.0 else controller
         options = {

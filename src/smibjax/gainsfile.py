@@ -76,20 +76,22 @@ def _no_options(controller: str, options: dict) -> dict:
 
 
 def synergetic_options(controller: str, options: dict) -> dict:
-    """The options of the paper's law: `projection` ([] or [[th1_min, th1_max],
-    [th2_min, th2_max]], finite, each lo < hi, containing the initial estimates
-    (-0.5, 0)) and `phi_layer` (a finite number >= 0, the evolution law's boundary
-    layer; 0: exact)."""
-    out = {"projection": [], "phi_layer": 0.0}
-    for name, v in options.items():
-        if name not in out:
+    """The options of the paper's law, those given (absent: off): `projection` ([]
+    or [[th1_min, th1_max], [th2_min, th2_max]], finite, each lo < hi, containing the
+    initial estimates (-0.5, 0)) and `phi_layer` (a finite number >= 0, the evolution
+    law's boundary layer; 0: exact)."""
+    allowed = ("projection", "phi_layer")
+    out = dict(options)
+    for name in options:
+        if name not in allowed:
             raise ParameterError(
                 f"option {name!r} is not allowed for controller {controller!r}: "
                 "allowed are projection, phi_layer"
             )
-        out[name] = v
-    box = out["projection"]
-    if box not in ([], None):
+    box = out.get("projection", [])
+    if "projection" not in out:
+        pass
+    elif box not in ([], None):
         try:
             (a, b), (c, d) = box
             lo, hi = [float(a), float(c)], [float(b), float(d)]
@@ -113,6 +115,8 @@ def synergetic_options(controller: str, options: dict) -> dict:
         out["projection"] = [[lo[0], hi[0]], [lo[1], hi[1]]]
     else:
         out["projection"] = []
+    if "phi_layer" not in out:
+        return out
     layer = out["phi_layer"]
     if (
         isinstance(layer, bool)
