@@ -176,7 +176,7 @@ def main(argv=None) -> int:
     results["nelder-mead (scipy)"] = {
         "simulations": count[0] * args.search_batch,
         "wall_s": time.perf_counter() - t0,
-        **score_final(best_nm[1]),
+        **score_final(to_raw(best_nm[1])),
     }
     curves["nelder-mead (scipy)"] = curve
 
