@@ -221,7 +221,7 @@ def test_simulate_refuses_what_it_cannot_answer(argv, needle, tmp_path, capsys):
 
 def test_cct_and_compare_refuse_a_fault_outside_the_horizon(tmp_path, capsys):
     assert main(["cct", "--t-end", "1.5", "--fault-location", "0.5"]) == 2
-    _one_line(capsys, "--reclose-time 2 is not allowed: must be before --t-end 1.5")
+    _one_line(capsys, "--t-end 1.5 is not allowed: must be after --reclose-time 2")
     out = tmp_path / "cmp"
     argv = ["compare", "--t-end", "1.0", "--n", "2", "--out", str(out)]
     assert main([*argv, "--reclose-time", "0.9"]) == 2  # CCT fits, Monte Carlo not

@@ -566,10 +566,10 @@ def _check_cct_args(args) -> None:
             f"--tol {args.tol:g} is not allowed: must be within [{MIN_TOL:g}, "
             f"{window:g}) s"
         )
-    if not args.reclose_time < args.t_end:
+    if not (math.isfinite(args.t_end) and args.t_end > args.reclose_time):
         raise CLIError(
-            f"--reclose-time {args.reclose_time:g} is not allowed: must be before "
-            f"--t-end {args.t_end:g}"
+            f"--t-end {args.t_end:g} is not allowed: must be after --reclose-time "
+            f"{args.reclose_time:g} (the fault time plus the clearing window)"
         )
     for lam in args.fault_location:  # every lane's fault, before any work
         if not 0 < lam < 1:
@@ -585,11 +585,6 @@ def _check_cct_args(args) -> None:
         )
     if not args.scan_step > 0:
         raise CLIError(f"--scan-step {args.scan_step:g} is not allowed: must be > 0")
-    if not (math.isfinite(args.t_end) and args.t_end > args.reclose_time):
-        raise CLIError(
-            f"--t-end {args.t_end:g} is not allowed: must be after --reclose-time "
-            f"{args.reclose_time:g} (the fault time plus the clearing window)"
-        )
 
 
 def _cct_cell(res: dict, r: dict, j: int) -> str:
