@@ -145,17 +145,18 @@ def test_state_sensitivity_to_clearing_time_across_reclosure(solver):
 
 
 def test_aftsc_adaptive_gradients_are_as_documented():
-    """README: AFTSC gradients are *not* trustworthy on the adaptive solver (the
-    finite-time law's step-size selection), use solver="fixed": pinned here, so that a
-    change shows up (and the README is updated). Measured on this loss: beta1 -0.0028
-    against -0.0080 from finite differences (the fixed path matches it to 1e-3 in
-    `test_parameter_gradient_matches_finite_differences`)."""
+    """AFTSC gradients on the adaptive solver at simulate's default tolerance, pinned
+    as documented (README, "Numerics"): on this loss they agree with central
+    differences to 1% since 2026-11-30 (-0.00807 against -0.00805). Before the
+    controller interface landed the same test measured -0.0028 against -0.0080; the
+    cause of the change was not isolated, so this test keeps watch both ways: a
+    return to the old disagreement fails it."""
     p = params("aftsc")
     w = weights(squared=UNIFORM)
     _, grad = value_and_grad(p, w, "adaptive")
     ad = float(grad["gains"].beta1)
     fd = central_difference(p, "beta1", w, "adaptive", 1e-4)
-    assert abs(ad - fd) > 0.2 * abs(fd)
+    assert abs(ad - fd) < 0.01 * abs(fd)
 
 
 @pytest.mark.parametrize("solver", ["adaptive", "fixed"])

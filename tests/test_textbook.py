@@ -86,7 +86,8 @@ def test_no_control_holds_the_operating_point():
     before = np.asarray(tr.t) <= 1.5
     np.testing.assert_allclose(np.asarray(tr.delta)[before], DELTA0, atol=1e-9)
     np.testing.assert_allclose(np.asarray(tr.u_r), 0.0)
-    np.testing.assert_allclose(np.asarray(tr.E), float(tr.E[0]), rtol=1e-8)
+    # E' frozen: T0 = 1e6 s moves it by about 1e-7 in the fault's 0.5 s
+    np.testing.assert_allclose(np.asarray(tr.E), float(tr.E[0]), rtol=1e-6)
 
 
 def test_cct_synchronism_criterion_matches_the_equal_area_criterion():

@@ -211,9 +211,9 @@ def test_resume_trains_only_the_remaining_steps(tmp_path, monkeypatch):
     def counting_engine(cfg, setup):
         step, validate = engine(cfg, setup)
 
-        def counted(raw, faults):
+        def counted(raw, scenarios, scale=1.0):
             trained.append(1)
-            return step(raw, faults)
+            return step(raw, scenarios, scale)
 
         return counted, validate
 
@@ -262,10 +262,22 @@ def test_end_to_end_run_writes_outputs_usable_by_simulate(tmp_path, capsys):
     assert gains["schema"] == "smibjax.gains/1" and sorted(gains["gains"]) == sorted(
         PAPER
     )
-    assert (gains["controller"], gains["adaptation"]) == ("aftsc", "oracle")
-    assert gains["plant"] == {"preset": "paper"}  # no limits: none written
+    # the default: the buildable case, with its options
+    assert (gains["controller"], gains["adaptation"]) == ("aftsc", "realizable")
+    assert gains["plant"] == {
+        "preset": "realistic",
+        "uf_min": -5.0,
+        "uf_max": 5.0,
+        "ur_min": -1.0,
+        "ur_max": 1.0,
+    }
+    assert gains["options"] == {
+        "projection": [[-1.0, 0.0], [0.0, 2.0]],
+        "phi_layer": 0.01,
+    }
     report = (out / "report.md").read_text()
-    assert "stable fraction" in report and "fixed grid" in report
+    assert "stable fraction" in report and "adaptive steps" in report
+    assert "peak commanded u_f" in report and "total variation" in report
     hist = np.genfromtxt(out / "history.csv", delimiter=",", names=True)
     assert hist.shape == (2,)
     assert (

@@ -43,7 +43,7 @@ def _saved_run(tmp_path, **over):
         (["--seed", "5"], "seed = 5"),
         (["--steps", "7"], "steps = 7"),
         (["--controller", "asc"], "controller = 'asc'"),
-        (["--preset", "realistic"], "preset = 'realistic'"),
+        (["--preset", "paper"], "preset = 'paper'"),
         (["--init", "x.json"], "init = 'x.json'"),
     ],
 )
@@ -106,7 +106,7 @@ def test_run_killed_before_its_first_checkpoint_can_be_finished(tmp_path, capsys
     assert main([*argv, "--resume"]) == 0
     captured = capsys.readouterr()
     assert "starting it from scratch" in captured.err
-    beta1 = json.loads((out / "gains.json").read_text())["beta1"]
+    beta1 = json.loads((out / "gains.json").read_text())["gains"]["beta1"]
     assert beta1 == pytest.approx(50.0, rel=1e-12)  # steps = 0: the start
     report = (out / "report.md").read_text()
     wall = float(report.split("Wall time ")[1].split(" s")[0])

@@ -19,9 +19,10 @@ Jacobian there; measured: SciPy's Radau and BDF take 2.7x and 3.9x the steps of 
 for alpha = 5/7, and diffrax's Kvaerno3/5 exhaust 50,000 steps, because |phi|^alpha is
 not Lipschitz at 0). `solver="fixed"` steps with Tsit5 on a grid known before the run
 (`smibjax._fixed`: steps of `dt`, the sample times and the switch times, as a
-checkpointed `lax.scan`); it is the path for gradients through alpha < 1 (adaptive
-steps give gradients through step-size selection that do not match finite
-differences; see tests/test_gradients.py).
+checkpointed `lax.scan`); it is the paper config's path for gradients through
+alpha < 1. Under input limits its gradients are wrong (the loop chatters on the grid,
+benchmarks/README.md), and the default tuning path is adaptive at rtol 1e-8 with the
+evolution law's boundary layer (tests/test_tuning.py, tests/test_gradients.py).
 """
 
 from __future__ import annotations
