@@ -552,6 +552,10 @@ def _cct_sets(args):
 def _check_cct_args(args) -> None:
     if args.fault_time < 0:
         raise CLIError(f"--fault-time {args.fault_time:g} is not allowed: must be >= 0")
+    if not math.isfinite(args.reclose_time):
+        raise CLIError(
+            f"--reclose-time {args.reclose_time:g} is not allowed: must be finite"
+        )
     if args.reclose_time <= args.fault_time:
         raise CLIError(
             f"--reclose-time {args.reclose_time:g} is not allowed: must be after "
