@@ -30,7 +30,7 @@ import numpy as np  # noqa: E402
 import smibjax as sj  # noqa: E402
 from smibjax import gainsfile  # noqa: E402
 from smibjax.cct import critical_clearing_times  # noqa: E402
-from smibjax.controllers import EstimateBox, Synergetic, make_controller  # noqa: E402
+from smibjax.controllers import Synergetic, make_controller  # noqa: E402
 from smibjax.montecarlo import MonteCarloSpec, compute_chunk, summarize  # noqa: E402
 from smibjax.scenarios import ScenarioDistribution  # noqa: E402
 
@@ -41,17 +41,9 @@ def _from_file(path):
     """(controller name, parameters, adaptation, options, controller) of a gains
     file with its context."""
     gf = gainsfile.read(path)
-    box = gf.options.get("projection") or []
-    ctrl = make_controller(
-        gf.controller,
-        gf.gains,
-        adaptation=gf.adaptation,
-        projection=EstimateBox(*zip(*box, strict=True)) if box else None,
-    )
+    ctrl = make_controller(gf.controller, gf.gains)
     if isinstance(ctrl, Synergetic):
-        ctrl = Synergetic(
-            ctrl.gains, ctrl.oracle, ctrl.projection, gf.options.get("phi_layer", 0.0)
-        )
+        ctrl = Synergetic.from_options(ctrl.gains, gf.adaptation, gf.options)
     return gf.controller, gf.gains, gf.adaptation, gf.options, ctrl
 
 

@@ -75,8 +75,7 @@ def _static_alpha(g, alpha_one: bool):
     if isinstance(g, Gains):
         return static_alpha(g, alpha_one)
     if isinstance(g, Synergetic):
-        gains = static_alpha(g.gains, alpha_one)
-        return Synergetic(gains, g.oracle, g.projection, g.phi_layer)
+        return g.with_static_alpha(alpha_one)
     return g
 
 

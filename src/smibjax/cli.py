@@ -210,19 +210,14 @@ def _controller_of(args, params):
     """The controller that runs: `params` itself (none, avr-pss) or the paper's law
     with `params` as gains, the adaptation and the options (projection, phi_layer)
     of the resolved context."""
-    from .controllers import EstimateBox, Synergetic
+    from .controllers import Synergetic
     from .parameters import Gains
 
     if not isinstance(params, Gains):
         return params
-    opts = getattr(args, "context", None)
-    opts = opts.options if opts is not None else {}
-    box = opts.get("projection") or []
-    return Synergetic(
-        params,
-        oracle=args.adaptation != "realizable",
-        projection=EstimateBox(*zip(*box, strict=True)) if box else None,
-        phi_layer=float(opts.get("phi_layer", 0.0)),
+    ctx = getattr(args, "context", None)
+    return Synergetic.from_options(
+        params, args.adaptation, ctx.options if ctx is not None else {}
     )
 
 

@@ -28,7 +28,7 @@ import numpy as np
 
 from ._validate import require_count, require_positive, require_samples
 from .controller import static_alpha
-from .controllers import CONTROLLERS, EstimateBox, Synergetic, make_controller
+from .controllers import CONTROLLERS, Synergetic, make_controller
 from .io import write_json, write_npz, write_text
 from .metrics import PHYSICS, metrics, physics_summary
 from .parallel import device_map
@@ -168,12 +168,8 @@ class MonteCarloSpec:
         """The controller with parameter set `params` (`parameters()[0]`)."""
         if not self.synergetic():
             return params
-        box = self.options.get("projection") or []
-        return Synergetic(
-            static_alpha(params, alpha_one),
-            oracle=self.adaptation == "oracle",
-            projection=None if not box else EstimateBox(*zip(*box, strict=True)),
-            phi_layer=float(self.options.get("phi_layer", 0.0)),
+        return Synergetic.from_options(
+            static_alpha(params, alpha_one), self.adaptation, self.options
         )
 
     def parameters(self) -> tuple:

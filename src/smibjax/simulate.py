@@ -52,7 +52,6 @@ from .closed_loop import (
     healthy,
     initial_state,
 )
-from .controller import static_alpha
 from .controllers import AbstractController, Synergetic
 from .network import prefault_stage, stage_at
 from .parameters import (
@@ -191,13 +190,14 @@ def _resolve_controller(gains, adaptation) -> AbstractController:
     gains = Gains() if gains is None else gains
     controller = as_controller(gains, adaptation != "realizable")
     if isinstance(controller, Synergetic):
-        oracle = controller.oracle if adaptation is None else adaptation == "oracle"
-        controller = Synergetic(
-            static_alpha(controller.gains),
-            oracle,
-            controller.projection,
-            controller.phi_layer,
-        )
+        if adaptation is not None:
+            controller = Synergetic(
+                controller.gains,
+                adaptation == "oracle",
+                controller.projection,
+                controller.phi_layer,
+            )
+        controller = controller.with_static_alpha()
     return controller
 
 

@@ -19,7 +19,7 @@ import numpy as np
 from jaxtyping import Array, Float
 
 from .._validate import ParameterError, is_concrete
-from ..controller import adaptation_rate, control_law
+from ..controller import adaptation_rate, control_law, static_alpha
 from ..parameters import GAIN_NAMES, Gains, _f
 from .base import AbstractController, ControllerOutput
 
@@ -126,6 +126,29 @@ class Synergetic(AbstractController):
     @classmethod
     def parameter_kinds(cls) -> dict[str, str]:
         return dict(GAIN_KINDS)
+
+    @classmethod
+    def from_options(
+        cls, gains: Gains, adaptation: str = "oracle", options: dict | None = None
+    ) -> Synergetic:
+        """The controller with `gains`, the `adaptation` mode ("oracle" or
+        "realizable") and the options of a gains file or Monte Carlo spec:
+        `projection` ([[th1_min, th1_max], [th2_min, th2_max]]; [] or absent: off) and
+        `phi_layer` (absent: 0, the exact law)."""
+        options = options or {}
+        box = options.get("projection") or []
+        return cls(
+            gains,
+            oracle=adaptation != "realizable",
+            projection=EstimateBox(*zip(*box, strict=True)) if box else None,
+            phi_layer=float(options.get("phi_layer", 0.0)),
+        )
+
+    def with_static_alpha(self, alpha_one: bool | None = None) -> Synergetic:
+        """The same controller with alpha compiled as the constant 1 where it is 1
+        (`smibjax.controller.static_alpha`)."""
+        gains = static_alpha(self.gains, alpha_one)
+        return Synergetic(gains, self.oracle, self.projection, self.phi_layer)
 
     def parameters(self) -> dict[str, float]:
         return {n: float(getattr(self.gains, n)) for n in GAIN_NAMES}
