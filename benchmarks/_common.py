@@ -15,8 +15,7 @@ import jax
 import numpy as np
 
 import smibjax as sj
-from smibjax.controller import static_alpha
-from smibjax.metrics import metrics
+from smibjax.batch import Engine, Scenarios
 from smibjax.scenarios import FaultDistribution, sample_faults
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -87,21 +86,18 @@ def host_devices(k: int) -> list:
     return devs[:k]
 
 
-def batched_metrics(
-    t_end: float, alpha_one: bool = False, rtol: float = RTOL, atol: float = ATOL
-):
-    """jit(vmap(simulate + metrics)): (gains, faults) -> (stable, settling time of
-    delta (s), accepted steps), adaptive solver at (rtol, atol). `alpha_one`: the
-    gains are ASC's (alpha = 1, compiled in as the Monte Carlo engine does)."""
+def batched_metrics(t_end: float, rtol: float = RTOL, atol: float = ATOL):
+    """The batch engine (`smibjax.batch.Engine`, the one every batched caller uses)
+    as (gains, faults, devices) -> (stable, settling time of delta (s), accepted
+    steps), adaptive solver at (rtol, atol); alpha = 1 (ASC) is compiled in by the
+    engine."""
+    engine = Engine(t_end=t_end, rtol=rtol, atol=atol)
 
-    def one(g, f):
-        # alpha = 1 (ASC) compiled in, as the Monte Carlo and CCT engines do.
-        g = static_alpha(g, alpha_one)
-        tr = sj.simulate(g, f, t_end=t_end, rtol=rtol, atol=atol)
-        m = metrics(tr)
-        return m.stable, m.settling_delta, tr.num_steps
+    def fn(g, faults, devices=None):
+        out = engine.run(g, Scenarios(faults), devices=devices)
+        return out.metrics.stable, out.metrics.settling_delta, out.num_steps
 
-    return jax.jit(jax.vmap(one, in_axes=(None, 0)))
+    return fn
 
 
 def timed(fn, repeat: int):

@@ -14,46 +14,39 @@ settling time for a stable run and `unstable_cost` for an unstable one.
 
 from __future__ import annotations
 
-import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
 
-import smibjax as sj
-from smibjax.metrics import metrics
-from smibjax.parallel import device_map
+from smibjax.batch import Scenarios
 
 __all__ = ["make_population_score", "cross_entropy_search"]
 
 
 def make_population_score(setup, unstable_cost: float = 20.0):
-    """(list of Gains, batched Fault) -> array of scores (s), one per candidate."""
-    s = setup
+    """(list of parameter sets, (faults, D)) -> (mean score (s), stable fraction),
+    one per candidate: every candidate on every scenario, as lanes of one batch of
+    the validation engine; a run's score is its delta settling time, or
+    `unstable_cost` if it is not stable."""
+    from .train import validation_engine
 
-    from .train import with_damping
-
-    def one(gains, f, d):
-        tr = sj.simulate(
-            s.controller_of(gains), f, with_damping(s.plant, d), t_end=s.val_t_end
-        )
-        m = metrics(tr, delta_band=s.weights.delta_band, Vt_band=s.weights.Vt_band)
-        return jnp.where(m.stable, m.settling_delta, unstable_cost), m.stable
-
-    batched = eqx.filter_jit(jax.vmap(one))
+    engine = validation_engine(setup)
 
     def score(candidates: list, scenarios):
         faults, damping = scenarios
         p = len(candidates)
         b = jax.tree_util.tree_leaves(faults)[0].shape[0]
-        gains = jax.tree_util.tree_map(
-            lambda *xs: jnp.repeat(jnp.stack(xs), b, axis=0), *candidates
+        ctrls = [setup.controller_of(c) for c in candidates]
+        lanes = jax.tree_util.tree_map(
+            lambda *xs: jnp.repeat(jnp.stack([jnp.asarray(x) for x in xs]), b, axis=0),
+            *[c.tunable() for c in ctrls],
         )
         tiled = jax.tree_util.tree_map(lambda a: jnp.tile(a, p), (faults, damping))
-        cost, stable = device_map(
-            lambda _, x: batched(x[0], *x[1]), None, (gains, tiled)
+        m = engine.run(ctrls[0], Scenarios(*tiled), lanes=lanes).metrics
+        stable = np.asarray(m.stable).reshape(p, b)
+        cost = np.where(
+            stable, np.asarray(m.settling_delta).reshape(p, b), unstable_cost
         )
-        cost = np.asarray(cost).reshape(p, b)
-        stable = np.asarray(stable).reshape(p, b)
         return cost.mean(axis=1), stable.mean(axis=1)
 
     return score

@@ -17,9 +17,10 @@ import jax.numpy as jnp
 import numpy as np
 
 import smibjax as sj
+from smibjax.batch import Engine, Scenarios
 from smibjax.controllers import AbstractController, EstimateBox, Synergetic
 from smibjax.losses import LossWeights, aggregate, loss_terms, scenario_loss
-from smibjax.metrics import metrics, physics_summary
+from smibjax.metrics import physics_summary
 from smibjax.parallel import device_map, shard_batch
 
 from .params import GainSpace
@@ -189,20 +190,28 @@ def make_loss(setup: Setup):
     )
 
 
+def validation_engine(setup: Setup) -> Engine:
+    """The batch engine of the exact validation: the accurate adaptive solver, hard
+    limits, the loss's settling bands, horizon `val_t_end`."""
+    s = setup
+    return Engine(
+        s.plant,
+        t_end=s.val_t_end,
+        delta_band=s.weights.delta_band,
+        Vt_band=s.weights.Vt_band,
+    )
+
+
 def make_validate(setup: Setup):
     """(parameters, (faults, D)) -> exact `Metrics` per scenario (the accurate
     adaptive solver, hard limits, the scenario's true damping D)."""
-    s = setup
+    engine = validation_engine(setup)
 
-    def one(params, sc):
-        f, d = sc
-        tr = sj.simulate(
-            s.controller_of(params), f, with_damping(s.plant, d), t_end=s.val_t_end
-        )
-        return metrics(tr, delta_band=s.weights.delta_band, Vt_band=s.weights.Vt_band)
+    def validate(params, scenarios):
+        faults, d = scenarios
+        return engine.run(setup.controller_of(params), Scenarios(faults, d)).metrics
 
-    batched = eqx.filter_jit(jax.vmap(one, in_axes=(None, 0)))
-    return lambda params, scenarios: device_map(batched, params, scenarios)
+    return validate
 
 
 def summarize(m) -> dict[str, float]:
@@ -238,5 +247,6 @@ __all__ = [
     "make_train_step",
     "make_loss",
     "make_validate",
+    "validation_engine",
     "summarize",
 ]

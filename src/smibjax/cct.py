@@ -39,28 +39,31 @@ that is not.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
-import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ._validate import require_count, require_positive, require_samples
-from .controller import static_alpha
+from ._validate import require_positive, require_samples
+from .batch import Engine, Scenarios
+from .closed_loop import as_controller
 from .controllers import Synergetic
-from .metrics import metrics
-from .parallel import device_map
 from .parameters import (
     Fault,
-    Gains,
     InitialEstimates,
     OperatingPoint,
     ParameterError,
     Plant,
 )
-from .simulate import simulate
 
-__all__ = ["critical_clearing_times", "scan_durations", "CRITERIA", "STATUSES"]
+__all__ = [
+    "critical_clearing_times",
+    "scan_durations",
+    "lane_kind",
+    "CRITERIA",
+    "STATUSES",
+]
 
 # Stability criteria of a CCT run (MODEL.md section 2, "Baselines", and section 4).
 CRITERIA = ("settled", "synchronism")
@@ -69,67 +72,28 @@ STATUSES = ("ok", "non_monotone", "exceeds_window", "unstable_at_min")
 MIN_TOL = 1e-9  # s: a finer bisection is below the solver's accuracy
 
 
-def _static_alpha(g, alpha_one: bool):
-    """`static_alpha` for a lane's parameters: `Gains` or a `Synergetic` controller
-    (other controllers have no alpha)."""
-    if isinstance(g, Gains):
-        return static_alpha(g, alpha_one)
-    if isinstance(g, Synergetic):
-        return g.with_static_alpha(alpha_one)
-    return g
+def lane_kind(controller) -> tuple:
+    """What gain sets of one call must share: the controller's type and structure
+    (`AbstractController.structure`)."""
+    return (type(controller).__name__, controller.structure())
 
 
-def _alpha(g):
-    """alpha of a lane's parameters (None for a controller without one)."""
-    if isinstance(g, Gains):
-        return float(g.alpha)
-    if isinstance(g, Synergetic):
-        return float(g.gains.alpha)
-    return None
-
-
-def _stable_batch_fn(
-    plant,
-    op,
-    init,
-    adaptation: str,
-    t_end: float,
-    alpha_one: bool = False,
-    max_steps: int = 50_000,
-    rtol: float = 1e-6,
-    atol: float = 1e-8,
-    criterion: str = "settled",
-):
-    """Jitted (gains, fault) lanes -> stable flags under `criterion`. The plant,
-    operating point and initial estimates are compile-time constants (XLA folds what
-    derives from them, as in the Monte Carlo engine); one compilation per batch shape.
-    `alpha_one`: every lane has alpha = 1 (compiled without signed powers)."""
-
-    @eqx.filter_jit
-    def run(lanes):
-        gains, fault = lanes
-
-        def one(g, f):
-            g = _static_alpha(g, alpha_one)
-            tr = simulate(
-                g,
-                f,
-                plant,
-                op=op,
-                init=init,
-                adaptation=adaptation,
-                t_end=t_end,
-                rtol=rtol,
-                atol=atol,
-                max_steps=max_steps,
-            )
-            if criterion == "synchronism":
-                return ~(tr.lost_sync | tr.budget_exhausted)
-            return metrics(tr).stable
-
-        return jax.vmap(one)(gains, fault)
-
-    return run
+def _lanes(gain_sets: dict, names: list, adaptation: str):
+    """(template controller, tunable values per set) of the gain sets, which must
+    share one `lane_kind` (they run as lanes of one program). The paper's law runs
+    with `adaptation`."""
+    ctrls = []
+    for n in names:
+        c = as_controller(gain_sets[n])
+        if isinstance(c, Synergetic):
+            c = Synergetic(c.gains, adaptation == "oracle", c.projection, c.phi_layer)
+        ctrls.append(c)
+    if len({lane_kind(c) for c in ctrls}) > 1:
+        raise ParameterError(
+            "the gain sets of one CCT call must share one controller and its options "
+            f"({', '.join(names)} do not): run them in separate calls"
+        )
+    return ctrls[0], [c.tunable() for c in ctrls]
 
 
 def scan_durations(window: float, tol: float, scan_step: float) -> np.ndarray:
@@ -196,7 +160,7 @@ def critical_clearing_times(
     max_steps: int = 50_000,
     rtol: float = 1e-6,
     atol: float = 1e-8,
-    progress: bool = False,
+    progress: Callable[[int, int], None] | None = None,
 ) -> dict:
     """CCT (s) of every gain set at every fault location (module docstring: scan,
     then bisection in the first unstable bracket).
@@ -241,19 +205,16 @@ def critical_clearing_times(
     if not gain_sets:
         raise ParameterError("give at least one gain set")
     names = list(gain_sets)
-    pairs = [(n, lam) for n in names for lam in locs]
+    template, values = _lanes(gain_sets, names, adaptation)
+    pairs = [(i, lam) for i in range(len(names)) for lam in locs]
     gains = jax.tree_util.tree_map(
-        lambda *xs: jnp.stack(xs), *[gain_sets[n] for n, _ in pairs]
+        lambda *xs: jnp.stack([jnp.asarray(x) for x in xs]),
+        *[values[i] for i, _ in pairs],
     )
     lam = np.asarray([p[1] for p in pairs])
     n_lanes = len(pairs)
-
-    alpha_one = all(_alpha(gain_sets[n]) == 1.0 for n in names)
-    require_count("max_steps", max_steps)
-    require_positive("rtol", rtol)
-    require_positive("atol", atol)
-    batch_fn = _stable_batch_fn(
-        plant, op, init, adaptation, t_end, alpha_one, max_steps, rtol, atol, criterion
+    engine = Engine(
+        plant, op, init, t_end=t_end, rtol=rtol, atol=atol, max_steps=max_steps
     )
 
     def stable_at(durations: np.ndarray, lanes: np.ndarray) -> np.ndarray:
@@ -268,18 +229,17 @@ def critical_clearing_times(
             Xf=jnp.full(n, fault_reactance),
         )
         g = jax.tree_util.tree_map(lambda a: a[jnp.asarray(lanes)], gains)
-        out = device_map(lambda _, b: batch_fn(b), None, (g, fault))
-        return np.asarray(out, dtype=bool)
+        out = engine.run(template, Scenarios(fault), lanes=g)
+        flags = out.synchronous if criterion == "synchronism" else out.metrics.stable
+        return np.asarray(flags, dtype=bool)
 
     scan = scan_durations(window, tol, scan_step)
     n_scan = len(scan)
     steps = max(1, math.ceil(math.log2(max(np.max(np.diff(scan)), tol) / tol)))
-    from tqdm.auto import tqdm
-
-    bar = tqdm(total=steps + 1, desc="cct scan + bisection", disable=not progress)
+    report = progress or (lambda done, total: None)
     lanes = np.repeat(np.arange(n_lanes), n_scan)
     grid = stable_at(np.tile(scan, n_lanes), lanes).reshape(n_lanes, n_scan)
-    bar.update()
+    report(1, steps + 1)
     all_stable = grid.all(axis=1)
     first_bad = np.where(all_stable, n_scan, np.argmin(grid, axis=1))
     active = (first_bad > 0) & ~all_stable
@@ -289,7 +249,7 @@ def critical_clearing_times(
         _islands(grid[i, first_bad[i] :], scan[first_bad[i] :]) for i in range(n_lanes)
     ]
     everyone = np.arange(n_lanes)  # one batch shape for every step: one compile
-    for _ in range(steps):
+    for step in range(steps):
         todo = active & (hi - lo > tol * (1 + 1e-9))
         if not todo.any():
             break
@@ -297,8 +257,8 @@ def critical_clearing_times(
         ok = stable_at(mid, everyone)
         lo = np.where(todo & ok, mid, lo)
         hi = np.where(todo & ~ok, mid, hi)
-        bar.update()
-    bar.close()
+        report(step + 2, steps + 1)
+    report(steps + 1, steps + 1)
     status = np.where(
         all_stable,
         "exceeds_window",

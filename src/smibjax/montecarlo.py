@@ -13,7 +13,6 @@ when every chunk is there. `run.json` records the spec and whether the run is co
 from __future__ import annotations
 
 import dataclasses
-import functools
 import json
 import math
 import numbers
@@ -21,20 +20,17 @@ import time
 from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
 
-import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
 
 from ._validate import require_count, require_positive, require_samples
-from .controller import static_alpha
+from .batch import Engine, Outcome, Scenarios
 from .controllers import CONTROLLERS, Synergetic, make_controller
 from .io import write_json, write_npz, write_text
-from .metrics import PHYSICS, metrics, physics_summary
-from .parallel import device_map
+from .metrics import PHYSICS, physics_summary
 from .parameters import Gains, InitialEstimates, OperatingPoint, ParameterError, Plant
 from .scenarios import ScenarioDistribution, sample_scenarios
-from .simulate import simulate
 
 __all__ = [
     "COLUMNS",
@@ -164,13 +160,11 @@ class MonteCarloSpec:
         """True for the paper's law (AFTSC / ASC)."""
         return self.controller == "" or CONTROLLERS[self.controller] is Synergetic
 
-    def controller_of(self, params, alpha_one: bool = False):
+    def controller_of(self, params):
         """The controller with parameter set `params` (`parameters()[0]`)."""
         if not self.synergetic():
             return params
-        return Synergetic.from_options(
-            static_alpha(params, alpha_one), self.adaptation, self.options
-        )
+        return Synergetic.from_options(params, self.adaptation, self.options)
 
     def parameters(self) -> tuple:
         """The parameter sets (values may be given as numbers or 'inf' strings): the
@@ -218,79 +212,6 @@ class MonteCarloSpec:
         return cls(**d)
 
 
-@functools.lru_cache(maxsize=8)
-def _engine(
-    adaptation,
-    t_end,
-    dt_save,
-    rtol,
-    atol,
-    max_steps,
-    fixed: str,
-    draw: bool,
-    alpha_one: bool = False,
-    controller: str = "{}",
-):
-    """The jitted batch function for one solver configuration and one (plant,
-    operating point, initial estimates), compiled once per process and batch shape,
-    then reused for every chunk; the gains stay arguments (one program for any gain
-    set).
-
-    The plant, operating point and initial estimates (`fixed`, their JSON) are
-    compile-time constants: XLA then folds every quantity derived from them instead of
-    recomputing it in each field evaluation inside the solver's loop (measured: twice
-    the throughput). Where D and Pm are drawn (`draw`), those two are per-scenario.
-    `alpha_one` (ASC): alpha = 1 is compiled in, and the signed powers with it."""
-    tables = json.loads(fixed)
-    plant = Plant(**{k: float(v) for k, v in tables["plant"].items()})
-    op = OperatingPoint(**{k: float(v) for k, v in tables["op"].items()})
-    init = InitialEstimates(**{k: float(v) for k, v in tables["init"].items()})
-    how = MonteCarloSpec(n=1, adaptation=adaptation, **json.loads(controller))
-
-    @eqx.filter_jit
-    def run(gains, scenarios):
-        faults, D, Pm = scenarios
-        ctrl = how.controller_of(gains, alpha_one)
-
-        def one(fault, d, pm):
-            p = eqx.tree_at(lambda q: (q.D, q.Pm), plant, (d, pm)) if draw else plant
-            tr = simulate(
-                ctrl,
-                fault,
-                p,
-                op=op,
-                init=init,
-                adaptation=adaptation,
-                t_end=t_end,
-                dt_save=dt_save,
-                rtol=rtol,
-                atol=atol,
-                max_steps=max_steps,
-            )
-            m = metrics(tr)
-            return {
-                "stable": m.stable,
-                "lost_sync": tr.lost_sync,
-                "budget_exhausted": tr.budget_exhausted,
-                "t_stop": tr.t_stop,
-                "settling_time": m.settling_delta,
-                "settling_Vt": m.settling_Vt,
-                "settling_omega": m.settling_omega,
-                "overshoot": m.overshoot,
-                "effort_uf": m.effort_uf,
-                "effort_ur": m.effort_ur,
-                "peak_uf": m.peak_uf,
-                "peak_ur": m.peak_ur,
-                "peak_B": m.peak_B,
-                **{k: getattr(m, k) for k in _PHYSICS},
-                "num_steps": tr.num_steps,
-            }
-
-        return jax.vmap(one)(faults, D, Pm)
-
-    return run
-
-
 def compute_chunk(spec: MonteCarloSpec, k: int, devices=None) -> dict[str, np.ndarray]:
     """The rows of chunk `k` (a dict of `COLUMNS` -> arrays), split over `devices`
     (default: every JAX device of this process). A pure function of (spec, k)."""
@@ -315,24 +236,25 @@ def compute_chunk(spec: MonteCarloSpec, k: int, devices=None) -> dict[str, np.nd
             ),
             scen,
         )
-    d = spec.to_dict()
-    fixed = json.dumps({k: d[k] for k in ("plant", "op", "init")}, sort_keys=True)
     draw = any(k in spec.dist for k in ("D", "Pm"))
-    fn = _engine(
-        spec.adaptation,
-        spec.t_end,
-        spec.dt_save,
-        spec.rtol,
-        spec.atol,
-        spec.max_steps,
-        fixed,
-        draw,
-        spec.synergetic() and float(params[0].alpha) == 1.0,
-        json.dumps(
-            {"controller": spec.controller, "options": spec.options}, sort_keys=True
-        ),
+    params, plant, op, init = params
+    engine = Engine(
+        plant,
+        op,
+        init,
+        t_end=spec.t_end,
+        dt_save=spec.dt_save,
+        rtol=spec.rtol,
+        atol=spec.atol,
+        max_steps=spec.max_steps,
     )
-    out = device_map(fn, params[0], scen, devices)
+    out = outcome_columns(
+        engine.run(
+            spec.controller_of(params),
+            Scenarios(*scen) if draw else Scenarios(scen[0]),
+            devices=devices,
+        )
+    )
     m = stop - start
     rows = {k_: np.asarray(v)[:m] for k_, v in out.items()}
     rows["index"] = np.arange(start, stop)
@@ -345,6 +267,28 @@ def compute_chunk(spec: MonteCarloSpec, k: int, devices=None) -> dict[str, np.nd
     rows["D"] = np.asarray(D)
     rows["Pm"] = np.asarray(Pm)
     return {c: rows[c].astype(int) if c in _INT_COLUMNS else rows[c] for c in COLUMNS}
+
+
+def outcome_columns(out: Outcome) -> dict:
+    """The computed columns of Monte Carlo rows from the engine's `Outcome`."""
+    m = out.metrics
+    return {
+        "stable": m.stable,
+        "lost_sync": out.lost_sync,
+        "budget_exhausted": out.budget_exhausted,
+        "t_stop": out.t_stop,
+        "settling_time": m.settling_delta,
+        "settling_Vt": m.settling_Vt,
+        "settling_omega": m.settling_omega,
+        "overshoot": m.overshoot,
+        "effort_uf": m.effort_uf,
+        "effort_ur": m.effort_ur,
+        "peak_uf": m.peak_uf,
+        "peak_ur": m.peak_ur,
+        "peak_B": m.peak_B,
+        **{k: getattr(m, k) for k in _PHYSICS},
+        "num_steps": out.num_steps,
+    }
 
 
 def in_process_runner(

@@ -77,6 +77,25 @@ class AbstractController(eqx.Module):
         """The tunable parameters as plain floats (the gains-file layout)."""
         return {n: float(getattr(self, n)) for n in self.parameter_kinds()}
 
+    # The split a batch engine needs (`smibjax.batch`): the tunable part of a
+    # controller is traced (one compiled program for any values, vmapped over lanes
+    # where every lane has its own), the rest is its structure, compiled in.
+
+    def tunable(self) -> eqx.Module:
+        """The tunable part (a pytree of arrays): by default the controller itself,
+        whose fields are all parameters."""
+        return self
+
+    def with_tunable(self, tunable: eqx.Module) -> AbstractController:
+        """This controller with its tunable part replaced (the inverse of
+        `tunable`)."""
+        return tunable
+
+    def structure(self) -> tuple:
+        """A hashable description of everything that is not `tunable()`: two
+        controllers of one type and structure differ only in tunable values."""
+        return ()
+
     @classmethod
     @abc.abstractmethod
     def parameter_kinds(cls) -> dict[str, str]:

@@ -153,6 +153,24 @@ class Synergetic(AbstractController):
     def parameters(self) -> dict[str, float]:
         return {n: float(getattr(self.gains, n)) for n in GAIN_NAMES}
 
+    def tunable(self) -> Gains:
+        """The gains; adaptation mode, projection box and boundary layer are
+        structure."""
+        return self.gains
+
+    def with_tunable(self, tunable: Gains) -> Synergetic:
+        return Synergetic(tunable, self.oracle, self.projection, self.phi_layer)
+
+    def structure(self) -> tuple:
+        box = self.projection
+        if box is not None:
+            box = (
+                tuple(np.asarray(box.lo, dtype=float).ravel().tolist()),
+                tuple(np.asarray(box.hi, dtype=float).ravel().tolist()),
+                box.layer,
+            )
+        return (self.oracle, box, float(self.phi_layer))
+
     def initial_internal(self, z0, plant, op, init):
         th0 = jnp.stack([init.th1, init.th2]) + jnp.zeros_like(z0[0])
         box = self.projection
