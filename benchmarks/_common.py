@@ -16,6 +16,7 @@ import numpy as np
 
 import smibjax as sj
 from smibjax.batch import Engine, Scenarios
+from smibjax.cli.process import enable_compilation_cache
 from smibjax.scenarios import FaultDistribution, sample_faults
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -52,7 +53,7 @@ def enable_cache() -> str | None:
     """The persistent compilation cache, as the CLI sets it, but only where
     SMIBJAX_CACHE_DIR is set (the tests use it to skip recompiles); returns the folder.
     Timed calls are second calls, which the cache does not change."""
-    return sj.enable_compilation_cache(os.environ.get("SMIBJAX_CACHE_DIR", ""))
+    return enable_compilation_cache(os.environ.get("SMIBJAX_CACHE_DIR", ""))
 
 
 def gains(controller: str) -> sj.Gains:

@@ -30,9 +30,9 @@ def _best(run: Path, n_val: int) -> dict:
     import jax
     import numpy as np
 
-    from smibjax import gainsfile
+    from smibjax.cli.files import read_gains_file
     from tuning.config import load_config
-    from tuning.optimize import build
+    from tuning.driver import build
     from tuning.train import draw_scenarios, make_validate, summarize
 
     cfg = load_config()
@@ -41,7 +41,7 @@ def _best(run: Path, n_val: int) -> dict:
     val = draw_scenarios(
         jax.random.PRNGKey(int(cfg["validation"]["seed"])), n_val, dist, setup.plant
     )
-    gf = gainsfile.read(run / "gains.json")
+    gf = read_gains_file(run / "gains.json")
     params = setup.space.make(**{**setup.space.frozen, **gf.gains})
     m = make_validate(setup)(params, val)
     return summarize(jax.tree_util.tree_map(np.asarray, m))

@@ -1,5 +1,5 @@
 """Monte Carlo throughput on Dask: scenarios/s with 1 and 2 local worker processes
-(`smibjax.cluster.dask_runner(workers=N)`), against the in-process run on one device and
+(`smibjax.cli.cluster.dask_runner(workers=N)`), against the in-process run on one device and
 on all host devices, for one fixed Monte Carlo (AFTSC, beta1 = beta2 = -1, default
 scenario distribution, seed 0). Each configuration runs twice: cold (the workers compile
 on their first chunk) and warm (the compiled engine is reused). Also measured: cluster
@@ -24,7 +24,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from smibjax.parallel import use_host_devices  # noqa: E402
+from smibjax.cli.process import use_host_devices  # noqa: E402
 
 use_host_devices()  # one host device per core, before JAX starts its CPU backend
 
@@ -98,7 +98,7 @@ def _compute_times(stream) -> dict[str, list[tuple[float, float]]]:
 def on_dask(spec, workers: int, roundtrips: int):
     from distributed import get_task_stream
 
-    from smibjax.cluster import dask_runner
+    from smibjax.cli.cluster import dask_runner
 
     t0 = time.perf_counter()
     with dask_runner(workers=workers) as runner:

@@ -60,7 +60,7 @@ import time
 t0 = time.perf_counter()
 import json, os, sys
 sys.path.insert(0, {root!r})
-from tuning.optimize import build  # one host device per core, as the tuner
+from tuning.driver import build  # one host device per core, as the tuner
 import jax
 from tuning.config import load_config
 from tuning.train import make_train_step

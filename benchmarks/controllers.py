@@ -21,15 +21,15 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from smibjax.parallel import use_host_devices  # noqa: E402
+from smibjax.cli.process import enable_compilation_cache, use_host_devices  # noqa: E402
 
 use_host_devices()
 
 import numpy as np  # noqa: E402
 
 import smibjax as sj  # noqa: E402
-from smibjax import gainsfile  # noqa: E402
 from smibjax.cct import critical_clearing_times  # noqa: E402
+from smibjax.cli.files import read_gains_file  # noqa: E402
 from smibjax.controllers import Synergetic, make_controller  # noqa: E402
 from smibjax.montecarlo import MonteCarloSpec, compute_chunk, summarize  # noqa: E402
 from smibjax.scenarios import ScenarioDistribution  # noqa: E402
@@ -40,7 +40,7 @@ LOCATIONS = (0.1, 0.3, 0.5, 0.7, 0.9)
 def _from_file(path):
     """(controller name, parameters, adaptation, options, controller) of a gains
     file with its context."""
-    gf = gainsfile.read(path)
+    gf = read_gains_file(path)
     ctrl = make_controller(gf.controller, gf.gains)
     if isinstance(ctrl, Synergetic):
         ctrl = Synergetic.from_options(ctrl.gains, gf.adaptation, gf.options)
@@ -54,7 +54,7 @@ def main(argv=None) -> int:
     ap.add_argument("--gains", nargs="*", default=[], metavar="LABEL:FILE")
     ap.add_argument("--out", default=str(ROOT / "benchmarks" / "results"))
     args = ap.parse_args(argv)
-    sj.enable_compilation_cache()
+    enable_compilation_cache()
     plant = sj.Plant.preset("realistic")
     limits = {
         k: float(getattr(plant, k)) for k in ("uf_min", "uf_max", "ur_min", "ur_max")

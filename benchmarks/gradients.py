@@ -25,7 +25,7 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from smibjax.parallel import use_host_devices  # noqa: E402
+from smibjax.cli.process import use_host_devices  # noqa: E402
 
 # One host device per core (at least two), before JAX starts its CPU backend.
 use_host_devices(minimum=2)
@@ -52,7 +52,7 @@ from _common import DEFAULT_OUT, enable_cache, status, timed  # noqa: E402
 from _results import write_results  # noqa: E402
 
 from tuning.config import load_config  # noqa: E402
-from tuning.optimize import build  # noqa: E402
+from tuning.driver import build  # noqa: E402
 from tuning.train import draw_scenarios, make_loss, make_train_step  # noqa: E402
 
 TARGET_RATIO, TARGET_MEMORY_MB = 5.0, 1000.0

@@ -11,7 +11,7 @@ Target (issue 5): 100,000 scenarios at >= 300 scenarios/s on a 2-core machine.
 
 from __future__ import annotations
 
-from smibjax.parallel import use_host_devices  # noqa: E402
+from smibjax.cli.process import use_host_devices  # noqa: E402
 
 use_host_devices()  # as `python -m smibjax` does, before JAX starts its CPU backend
 
@@ -26,7 +26,8 @@ from _common import add_tolerance_args, result_name  # noqa: E402
 from _results import write_results  # noqa: E402
 
 import smibjax as sj  # noqa: E402
-from smibjax.montecarlo import MonteCarloSpec, compute_chunk, run_montecarlo  # noqa: E402
+from smibjax.cli.runs import run_montecarlo  # noqa: E402
+from smibjax.montecarlo import MonteCarloSpec, compute_chunk  # noqa: E402
 
 TARGET = 300.0  # scenarios / s
 

@@ -35,6 +35,7 @@ import numpy as np  # noqa: E402
 from benchmarks._results import write_results  # noqa: E402
 
 import smibjax as sj  # noqa: E402
+from smibjax.cli.process import enable_compilation_cache  # noqa: E402
 from smibjax.controllers import EstimateBox, Synergetic  # noqa: E402
 from smibjax.losses import LossWeights, scenario_loss  # noqa: E402
 from tuning.params import GainSpace  # noqa: E402
@@ -75,7 +76,7 @@ def main(argv=None) -> int:
     ap.add_argument("--t-end", type=float, default=8.0)
     ap.add_argument("--out", default=str(Path(__file__).parent / "results"))
     args = ap.parse_args(argv)
-    sj.enable_compilation_cache()
+    enable_compilation_cache()
     space = GainSpace.build(
         START,
         freeze=["k1", "k2", "c1", "c2"],

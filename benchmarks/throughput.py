@@ -20,7 +20,7 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from smibjax.parallel import use_host_devices  # noqa: E402
+from smibjax.cli.process import use_host_devices  # noqa: E402
 
 # One host device per core (at least two), before JAX starts its CPU backend.
 use_host_devices(minimum=2)

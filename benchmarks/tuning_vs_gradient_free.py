@@ -26,7 +26,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from smibjax.parallel import use_host_devices  # noqa: E402
+from smibjax.cli.process import enable_compilation_cache, use_host_devices  # noqa: E402
 
 use_host_devices()  # one host device per core, before JAX starts its CPU backend
 
@@ -39,9 +39,8 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 from _results import write_results  # noqa: E402
 
-import smibjax as sj  # noqa: E402
 from tuning.config import load_config  # noqa: E402
-from tuning.optimize import build, run  # noqa: E402
+from tuning.driver import build, run  # noqa: E402
 from tuning.search import cross_entropy_search, make_population_score  # noqa: E402
 from tuning.train import draw_scenarios, make_validate, summarize  # noqa: E402
 
@@ -55,7 +54,7 @@ def main(argv=None) -> int:
     ap.add_argument("--validation", type=int, default=256)
     ap.add_argument("--out", default=str(Path(__file__).parent / "results"))
     args = ap.parse_args(argv)
-    sj.enable_compilation_cache()
+    enable_compilation_cache()
     cfg = load_config()
     cfg["steps"] = max(1, args.budget // args.batch)
     cfg["batch"] = args.batch

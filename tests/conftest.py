@@ -5,19 +5,20 @@ import os
 import sys
 from pathlib import Path
 
-os.environ.setdefault("JAX_PLATFORMS", "cpu")
-
-import jax  # noqa: E402
-import pytest  # noqa: E402
-
-import smibjax as sj  # noqa: E402
+from smibjax.cli.process import configure_process
 
 ROOT = Path(__file__).resolve().parents[1]
+os.environ.setdefault("JAX_PLATFORMS", "cpu")
+# The suite is an entry point like the CLI: float64, equinox's checks as NaNs (so the
+# persistent cache in .jax_cache/ stores the simulator), one device unless the
+# environment asks for more.
+configure_process(host_devices=False, cache_dir=str(ROOT / ".jax_cache"))
 sys.path.insert(0, str(Path(__file__).parent))
-jax.config.update("jax_compilation_cache_dir", str(ROOT / ".jax_cache"))
-jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.5)
+
+import pytest  # noqa: E402
 
 import reference  # noqa: E402
+import smibjax as sj  # noqa: E402
 
 STABLE = {"beta1": -1.0, "beta2": -1.0}
 

@@ -71,7 +71,7 @@ MUTANTS = [
     # -- tuner resume ----------------------------------------------------------------
     Mutant(
         "resume-restarts",
-        "tuning/optimize.py",
+        "tuning/driver.py",
         "    if resume:\n        state = load_checkpoint(out, opt, raw0)",
         "    if False:\n        state = load_checkpoint(out, opt, raw0)",
         ("tests/test_tuning.py::test_resume_trains_only_the_remaining_steps",),
@@ -259,10 +259,10 @@ MUTANTS = [
         ),
         "no transfer-reactance check: the run integrates through the singularity",
     ),
-    # -- atomic writes (io.py) ------------------------------------------------------------
+    # -- atomic writes (cli/files.py)-----------------------------------------------------------
     Mutant(
         "io-write-in-place",
-        "src/smibjax/io.py",
+        "src/smibjax/cli/files.py",
         "        write(tmp)\n        os.replace(tmp, p)",
         "        write(str(p))\n        os.replace(tmp, p)",
         ("tests/test_io.py",),

@@ -130,7 +130,7 @@ def test_cct_command_criterion_t_end_and_table(tmp_path, capsys):
 @pytest.mark.parametrize(
     "argv, match",
     [
-        (["cct", "--t-end", "1.5"], "--t-end 1.5 is not allowed: must be after"),
+        (["cct", "--t-end", "1.5"], "--t-end 1.5 s is not allowed: must be after"),
         (["cct", "--criterion", "angle"], "invalid choice: 'angle'"),
         (["cct", "--scan-step", "0"], "--scan-step 0 is not allowed"),
     ],

@@ -193,12 +193,12 @@ def test_a_run_that_stopped_early_reports_not_reached(tmp_path, capsys):
         (
             ["--t-end", "2", "--fault-time", "5", "--clear-time", "5.2"]
             + ["--reclose-time", "6"],
-            "Fault.t_fault = 5 is not allowed: must be < t_end = 2",
+            "Fault.t_fault = 5 is not allowed: must be < --t-end 2",
         ),
         (
             ["--t-end", "2", "--fault-time", "1", "--clear-time", "2.5"]
             + ["--reclose-time", "3"],
-            "Fault.t_clear = 2.5 is not allowed: must be < t_end = 2",
+            "Fault.t_clear = 2.5 is not allowed: must be < --t-end 2",
         ),
         (["--dt-save", "1e-300"], "t_end / dt_save = 10 / 1e-300 is not allowed"),
         (["--t-end", "1e308"], "t_end / dt_save = 1e+308 / 0.01 is not allowed"),
@@ -221,11 +221,11 @@ def test_simulate_refuses_what_it_cannot_answer(argv, needle, tmp_path, capsys):
 
 def test_cct_and_compare_refuse_a_fault_outside_the_horizon(tmp_path, capsys):
     assert main(["cct", "--t-end", "1.5", "--fault-location", "0.5"]) == 2
-    _one_line(capsys, "--t-end 1.5 is not allowed: must be after --reclose-time 2")
+    _one_line(capsys, "--t-end 1.5 s is not allowed: must be after --reclose-time 2 s")
     out = tmp_path / "cmp"
     argv = ["compare", "--t-end", "1.0", "--n", "2", "--out", str(out)]
     assert main([*argv, "--reclose-time", "0.9"]) == 2  # CCT fits, Monte Carlo not
-    _one_line(capsys, "t_end = 1 is not allowed: must be > 1.25 s")
+    _one_line(capsys, "--t-end 1 is not allowed: must be > 1.25 s")
     assert not out.exists()
 
 
@@ -235,7 +235,7 @@ def test_cct_and_compare_refuse_a_fault_outside_the_horizon(tmp_path, capsys):
         (["--tol", "1e-300"], "--tol 1e-300 is not allowed: must be within [1e-09, "),
         (["--tol", "nan"], "--tol: nan is not allowed"),
         (["--fault-location", "0.5", "nan"], "--fault-location nan is not allowed"),
-        (["--reclose-time", "inf"], "--reclose-time inf is not allowed"),
+        (["--reclose-time", "inf"], "--reclose-time inf s is not allowed"),
     ],
 )
 def test_cct_and_compare_options_are_checked_before_any_work(

@@ -11,11 +11,12 @@ import pytest
 
 import smibjax as sj
 from conftest import ROOT
-from smibjax.montecarlo import MonteCarloSpec, read_rows, run_montecarlo
+from smibjax.cli.runs import read_rows, run_montecarlo
+from smibjax.montecarlo import MonteCarloSpec
 
 pytest.importorskip("distributed")
 
-from smibjax.cluster import chunk_key, dask_runner  # noqa: E402
+from smibjax.cli.cluster import chunk_key, dask_runner  # noqa: E402
 
 GAINS = sj.Gains.paper("aftsc", beta1=-1.0, beta2=-1.0)
 # 6 chunks of 4 (a vmapped batch of one scenario gives slightly different rows from a

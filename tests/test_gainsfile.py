@@ -9,7 +9,7 @@ import pytest
 import smibjax as sj
 from smibjax import gainsfile
 from smibjax.cli import main
-from smibjax.io import read_gains
+from smibjax.cli.files import read_gains, read_gains_file, write_gains_file
 
 STABLE = {
     k: float(getattr(sj.Gains.paper("aftsc", beta1=-1.0, beta2=-1.0), k))
@@ -22,11 +22,11 @@ REALISTIC = {"uf_min": -5.0, "uf_max": 5.0, "ur_min": -1.0, "ur_max": 1.0}
 def tuned(tmp_path):
     """A gains.json as the tuner writes it after tuning under the realistic limits
     with realizable adaptation (its writer, `_gains_file`, without the tuning)."""
-    from tuning.optimize import _gains_file
+    from tuning.driver import _gains_file
 
     cfg = {"controller": "aftsc", "adaptation": "realizable", "preset": "realistic"}
     path = tmp_path / "run" / "gains.json"
-    gainsfile.write(path, _gains_file(cfg, sj.Gains(**STABLE)))
+    write_gains_file(path, _gains_file(cfg, sj.Gains(**STABLE)))
     return path
 
 
@@ -39,7 +39,7 @@ def test_the_tuner_writes_the_documented_schema(tuned):
         "options": {},
         "gains": STABLE,
     }
-    gf = gainsfile.read(tuned, complete=True)
+    gf = read_gains_file(tuned, complete=True)
     assert gf == gainsfile.GainsFile(
         "aftsc", "realizable", {"preset": "realistic", **REALISTIC}, {}, STABLE
     )
@@ -48,13 +48,13 @@ def test_the_tuner_writes_the_documented_schema(tuned):
     wide = gainsfile.GainsFile(
         "aftsc", "oracle", {"preset": "realistic", "uf_max": float("inf")}, {}, {}
     )
-    gainsfile.write(tuned, wide)
+    write_gains_file(tuned, wide)
     assert json.loads(tuned.read_text())["plant"]["uf_max"] is None
-    assert gainsfile.read(tuned) == wide
+    assert read_gains_file(tuned) == wide
 
 
 def test_resolve_flag_then_file_then_paper(tuned):
-    gf = gainsfile.read(tuned)
+    gf = read_gains_file(tuned)
     ctx, gains, msgs = gainsfile.resolve(gf)
     assert (ctx.controller, ctx.adaptation, ctx.preset) == (
         "aftsc",
@@ -77,7 +77,7 @@ def test_resolve_flag_then_file_then_paper(tuned):
 def test_flat_file_loads_with_paper_defaults_and_a_note(tmp_path, capsys):
     flat = tmp_path / "g.json"
     flat.write_text(json.dumps({**STABLE, "alpha": 1.0}))
-    gf = gainsfile.read(flat)
+    gf = read_gains_file(flat)
     assert gf.legacy and gf.controller == "asc" and gf.adaptation == "oracle"
     ctx, _, msgs = gainsfile.resolve(gf, adaptation="realizable", source="F")
     assert msgs == [
@@ -133,9 +133,9 @@ def test_round_trip_every_command_uses_the_context(
             res[k] = per[k] if len(names) == 1 else {n: per[k] for n in names}
         return res
 
-    import smibjax.cct
+    import smibjax.cli.cct
 
-    monkeypatch.setattr(smibjax.cct, "critical_clearing_times", fake_cct)
+    monkeypatch.setattr(smibjax.cli.cct, "critical_clearing_times", fake_cct)
     cct = tmp_path / "c.json"
     argv = ["cct", "--gains", str(tuned), "--fault-location", "0.5", "--out", str(cct)]
     assert main(argv) == 0

@@ -9,9 +9,15 @@ import numpy as np
 import pytest
 
 import smibjax as sj
-import smibjax.io as sio
+import smibjax.cli.files as sio
 from smibjax.cli import main
-from smibjax.io import check_new_file, read_table, write_json, write_npz, write_text
+from smibjax.cli.files import (
+    check_new_file,
+    read_table,
+    write_json,
+    write_npz,
+    write_text,
+)
 
 
 def _only(path):

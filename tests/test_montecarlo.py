@@ -18,12 +18,11 @@ import smibjax as sj
 from conftest import ROOT, STABLE
 from smibjax.cct import critical_clearing_times
 from smibjax.cli import main
+from smibjax.cli.runs import read_rows, run_montecarlo
 from smibjax.montecarlo import (
     COLUMNS,
     MonteCarloSpec,
     compute_chunk,
-    read_rows,
-    run_montecarlo,
     summarize,
     wilson_interval,
 )
@@ -224,7 +223,7 @@ def test_cct_bisection_brackets_the_stability_boundary():
 
 def test_cct_solver_tolerances_reach_the_runs(monkeypatch):
     """The CCT engine's runs use the tolerances given (traced, not run)."""
-    import smibjax.cct as cct_module
+    import smibjax.batch as cct_module
 
     seen = {}
 
@@ -372,9 +371,9 @@ def test_specs_that_cannot_be_run_honestly_are_refused(kw, match):
 @pytest.mark.parametrize(
     "argv, match",
     [
-        (["--seed", "-1"], r"seed = -1 is not allowed"),
-        (["--seed", str(2**32)], r"seed = 4294967296 is not allowed"),
-        (["--t-end", "1.0"], r"t_end = 1 is not allowed: must be > 1.25 s"),
+        (["--seed", "-1"], r"--seed -1 is not allowed"),
+        (["--seed", str(2**32)], r"--seed 4294967296 is not allowed"),
+        (["--t-end", "1.0"], r"--t-end 1 is not allowed: must be > 1.25 s"),
         (["--set", "H=inf"], r"Plant.H = inf is not allowed"),
     ],
 )

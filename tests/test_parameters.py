@@ -115,7 +115,7 @@ _BOUNDED = tuple(
 
 def _build(name, value):
     """The parameter sets with one value changed, as the CLI builds them (--set)."""
-    from smibjax.cli import build_parameters
+    from smibjax.cli.options import build_parameters
 
     return build_parameters("aftsc", "paper", None, {name: value})
 
@@ -173,7 +173,7 @@ def test_fault_times_and_location_must_be_finite(name, value):
     value=st.sampled_from([math.nan, math.inf, -math.inf]),
 )
 def test_gains_file_with_non_finite_values_is_refused(tmp_path_factory, name, value):
-    from smibjax.cli import build_parameters
+    from smibjax.cli.options import build_parameters
 
     path = tmp_path_factory.mktemp("g") / "g.toml"
     path.write_text(f"{name} = {'nan' if math.isnan(value) else value}\n")

@@ -13,7 +13,8 @@ import pytest
 import smibjax as sj
 from smibjax.cli import main as smibjax_main
 from tuning.config import check_config, load_config
-from tuning.optimize import build, main, run
+from tuning.driver import build, run
+from tuning.optimize import main
 from tuning.params import GainSpace, gains_to_dict
 from tuning.train import draw_scenarios, make_train_step
 
@@ -203,7 +204,7 @@ def test_resume_trains_only_the_remaining_steps(tmp_path, monkeypatch):
     byte (their wall-clock `seconds` too: a restart would recompute them), and ends
     where an uninterrupted run ends (the run is deterministic, so that alone could not
     tell a resume from a restart)."""
-    import tuning.optimize as optimize
+    import tuning.driver as optimize
 
     trained = []
     engine = optimize._engine
@@ -389,7 +390,7 @@ def test_search_warm_start_end_to_end(tmp_path):
     state = run(cfg, tmp_path)
     hist = state["search"]
     assert len(hist) == 1 and hist[0]["best_score"] <= hist[0]["mean_score"]
-    from tuning.optimize import finish
+    from tuning.driver import finish
 
     finish(cfg, tmp_path, state)
     assert "Gradient-free warm start" in (tmp_path / "report.md").read_text()

@@ -10,7 +10,8 @@ import pytest
 
 import smibjax as sj
 from tuning.config import load_config
-from tuning.optimize import CHECKPOINT, main
+from tuning.driver import CHECKPOINT
+from tuning.optimize import main
 from tuning.resume import SESSIONS, SessionClock, first_difference, start_mode
 
 

@@ -6,26 +6,20 @@ import math
 from pathlib import Path
 
 import jax
-import matplotlib
+import numpy as np
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-
-import smibjax as sj  # noqa: E402
-from smibjax.io import atomic_write, write_text  # noqa: E402
+import smibjax as sj
+from smibjax.cli.files import write_text
+from smibjax.cli.plotting import save_figure, subplots
 
 from .params import gains_to_dict
-from .train import with_damping  # noqa: E402
+from .train import with_damping
 
-
-def _save(fig, path):
-    atomic_write(path, lambda tmp: fig.savefig(tmp, dpi=110, format="png"))
-    plt.close(fig)
+_save = save_figure
 
 
 def plot_history(out: Path, history: list[dict], validation: list[dict]) -> None:
-    fig, ax = plt.subplots(3, 1, figsize=(8, 8), sharex=True)
+    fig, ax = subplots(3, 1, figsize=(8, 8), sharex=True)
     s = [r["step"] for r in history]
     ax[0].plot(s, [r["loss"] for r in history], lw=1)
     ax[0].set_ylabel("training loss")
@@ -46,7 +40,7 @@ def plot_history(out: Path, history: list[dict], validation: list[dict]) -> None
 
 
 def plot_hist(out: Path, m0, m1) -> None:
-    fig, ax = plt.subplots(figsize=(7, 4))
+    fig, ax = subplots(figsize=(7, 4))
     for m, label in ((m0, "initial"), (m1, "tuned")):
         st = np.asarray(m.stable)
         ts = np.asarray(m.settling_delta)[st]
@@ -67,7 +61,7 @@ def plot_hist(out: Path, m0, m1) -> None:
 
 
 def plot_trajectories(out: Path, runs: dict) -> None:
-    fig, axes = plt.subplots(len(runs), 1, figsize=(8, 2.6 * len(runs)), sharex=True)
+    fig, axes = subplots(len(runs), 1, figsize=(8, 2.6 * len(runs)), sharex=True)
     for ax, (title, pair) in zip(np.atleast_1d(axes), runs.items(), strict=True):
         for (label, tr), style in zip(pair.items(), ("--", "-"), strict=True):
             t, d = np.asarray(tr.t), np.array(tr.delta)
@@ -186,13 +180,18 @@ def _paper_fault_lines(tr, setup) -> list[str]:
     ]
 
 
-def write_report(cfg: dict, out: Path, state: dict) -> None:
-    space, setup = state["space"], state["setup"]
-    raw0 = space.to_raw(state["init"])
+def write_report(
+    cfg: dict, out: Path, state: dict, problem, validate, val_scenarios
+) -> None:
+    """report.md and the plots of a finished run: `state` (the driver's data),
+    `problem` (`tuning.driver.Problem`), `validate` (raw -> (summary, metrics)) and
+    the validation scenarios (faults, D)."""
+    space, setup = problem.space, problem.setup
+    raw0 = space.to_raw(problem.init)
     best = state["best"]
     g0, g1 = space.to_gains(raw0), space.to_gains(best["raw"])
-    v0s, m0 = state["validate"](raw0)
-    v1s, m1 = state["validate"](best["raw"])
+    v0s, m0 = validate(raw0)
+    v1s, m1 = validate(best["raw"])
     plot_history(out, state["history"], state["validation"])
     plot_hist(out, m0, m1)
     # representative scenarios: the paper's fault, the median and worst tuned ones
@@ -204,7 +203,7 @@ def write_report(cfg: dict, out: Path, state: dict) -> None:
             setup.plant.D,
         )
     }
-    vf, vd = state["val_faults"]
+    vf, vd = val_scenarios
     for name, i in (
         ("median tuned", order[len(order) // 2]),
         ("worst tuned", order[-1]),

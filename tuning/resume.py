@@ -20,7 +20,7 @@ import time
 from pathlib import Path
 
 from smibjax import ParameterError
-from smibjax.io import write_json
+from smibjax.cli.files import write_json
 
 __all__ = ["start_mode", "first_difference", "SessionClock", "SESSIONS"]
 

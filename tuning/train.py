@@ -10,11 +10,13 @@ validation by `smibjax.parallel.device_map`.
 from __future__ import annotations
 
 import dataclasses
+from typing import NamedTuple
 
 import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
+import optax
 
 import smibjax as sj
 from smibjax.batch import Engine, Scenarios
@@ -175,6 +177,41 @@ def make_train_step(setup: Setup):
     return step
 
 
+class StepInfo(NamedTuple):
+    """What a training step measured on its batch."""
+
+    loss: jax.Array  # the batch aggregate (mean + tail_weight CVaR)
+    per_scenario: jax.Array  # each scenario's loss
+    terms: dict  # each named loss term, per scenario (`smibjax.losses.TERMS`)
+    stable: jax.Array  # each scenario's stability (training solver)
+    grad_norm: float  # global norm of the batch gradient, before clipping
+    dropped: int  # scenarios left out for a non-finite gradient
+
+
+def make_step(setup: Setup, opt, train_step=None):
+    """The training step as a pure function, optax-style:
+
+        raw, opt_state, info = step(raw, opt_state, (scenarios, scale))
+
+    `raw`: the raw (transformed) parameters; `opt_state`: `opt`'s state; the batch:
+    (faults, D) of the scenarios and the factor on the input limits; `info`: a
+    `StepInfo`. `train_step` (default: `make_train_step(setup)`) computes the batch
+    loss and gradient."""
+    train = make_train_step(setup) if train_step is None else train_step
+
+    def step(raw, opt_state, batch):
+        scenarios, scale = batch
+        loss, per, terms, stable, grads, dropped = train(raw, scenarios, scale)
+        updates, opt_state = opt.update(grads, opt_state, raw)
+        gnorm = float(
+            jnp.sqrt(sum(jnp.sum(g**2) for g in jax.tree_util.tree_leaves(grads)))
+        )
+        info = StepInfo(loss, per, terms, stable, gnorm, dropped)
+        return optax.apply_updates(raw, updates), opt_state, info
+
+    return step
+
+
 def make_loss(setup: Setup):
     """(raw, (faults, D)) -> batch loss, forward only (for gradient-free
     optimizers)."""
@@ -245,6 +282,8 @@ __all__ = [
     "scaled_limits",
     "with_damping",
     "make_train_step",
+    "make_step",
+    "StepInfo",
     "make_loss",
     "make_validate",
     "validation_engine",

@@ -1,98 +1,123 @@
 """smibjax: a differentiable simulator of a single-machine-infinite-bus power system
 with a static var compensator under adaptive (finite-time) synergetic control.
 
-Importing smibjax enables JAX's 64-bit mode: the closed loop is stiff and the finite-time
-law works near phi = 0, where float32 is not enough.
+Importing smibjax changes nothing in your process: it sets no JAX option, no
+environment variable and no matplotlib backend, and it loads its modules (and JAX)
+only when a name is first used. smibjax needs JAX's 64-bit mode (the closed loop is
+stiff and the finite-time law works near phi = 0, where float32 is not enough); set
+it before you create any array:
+
+    import jax
+    jax.config.update("jax_enable_x64", True)
+    import smibjax as sj
+
+`sj.simulate` refuses to run without it. The command line and the tuner set it, and
+more, themselves (`smibjax.cli.process.configure_process`).
 """
 
-import os
+from __future__ import annotations
 
-# Equinox turns runtime checks into host callbacks, and XLA's persistent compilation
-# cache refuses programs with host callbacks. The only such checks in smibjax's
-# compiled graphs are diffrax's argument checks (save times ordered and inside
-# [t0, t1], jump times ordered), which smibjax's validated inputs always satisfy; as
-# NaN-on-failure checks they compile without callbacks, so the cache can store the
-# simulator (first call in a new process: seconds instead of tens of seconds). Set
-# EQX_ON_ERROR yourself (before importing equinox) to choose otherwise.
-os.environ.setdefault("EQX_ON_ERROR", "nan")
-
-import jax  # noqa: E402
-
-jax.config.update("jax_enable_x64", True)
-
-from .closed_loop import ClosedLoop, closed_loop_vector_field, initial_state  # noqa: E402
-from .controller import (  # noqa: E402
-    adaptation_rate,
-    control_law,
-    drift_and_gain,
-    drift_and_gain_closed_form,
-    paper_coordinates,
-    spow,
-)
-from .metrics import Metrics, metrics  # noqa: E402
-from .network import Stage, fault_stage, stage_at  # noqa: E402
-from .parameters import (  # noqa: E402
-    FAULT_NAMES,
-    GAIN_NAMES,
-    PLANT_NAMES,
-    Fault,
-    Gains,
-    InitialEstimates,
-    OperatingPoint,
-    ParameterError,
-    Plant,
-)
-from .plant import electrical_power, plant_vector_field, terminal_voltage  # noqa: E402
-from .simulate import Trajectory, simulate  # noqa: E402
+import importlib
+import sys
+import types
+from typing import TYPE_CHECKING
 
 __version__ = "0.1.0"
 
+# public name -> the module that defines it
+_EXPORTS = {
+    "ClosedLoop": "closed_loop",
+    "closed_loop_vector_field": "closed_loop",
+    "initial_state": "closed_loop",
+    "adaptation_rate": "controller",
+    "control_law": "controller",
+    "drift_and_gain": "controller",
+    "drift_and_gain_closed_form": "controller",
+    "paper_coordinates": "controller",
+    "spow": "controller",
+    "Metrics": "metrics",
+    "metrics": "metrics",
+    "Stage": "network",
+    "fault_stage": "network",
+    "stage_at": "network",
+    "FAULT_NAMES": "parameters",
+    "GAIN_NAMES": "parameters",
+    "PLANT_NAMES": "parameters",
+    "Fault": "parameters",
+    "Gains": "parameters",
+    "InitialEstimates": "parameters",
+    "OperatingPoint": "parameters",
+    "ParameterError": "parameters",
+    "Plant": "parameters",
+    "electrical_power": "plant",
+    "plant_vector_field": "plant",
+    "terminal_voltage": "plant",
+    "Trajectory": "simulate",
+    "simulate": "simulate",
+    "Engine": "batch",
+    "Scenarios": "batch",
+    "Outcome": "batch",
+}
 
-def enable_compilation_cache(path: str | None = None) -> str | None:
-    """Turn on JAX's persistent compilation cache for smibjax's programs, in `path`
-    (default: $SMIBJAX_CACHE_DIR, else ~/.cache/smibjax/jax; an empty
-    SMIBJAX_CACHE_DIR turns it off). Programs that took >= 0.5 s to compile are kept,
-    so a new process skips XLA compilation (tracing still runs). Returns the folder."""
-    from pathlib import Path
+if TYPE_CHECKING:  # for type checkers and documentation tools
+    from .batch import Engine, Outcome, Scenarios
+    from .closed_loop import ClosedLoop, closed_loop_vector_field, initial_state
+    from .controller import (
+        adaptation_rate,
+        control_law,
+        drift_and_gain,
+        drift_and_gain_closed_form,
+        paper_coordinates,
+        spow,
+    )
+    from .metrics import Metrics, metrics
+    from .network import Stage, fault_stage, stage_at
+    from .parameters import (
+        FAULT_NAMES,
+        GAIN_NAMES,
+        PLANT_NAMES,
+        Fault,
+        Gains,
+        InitialEstimates,
+        OperatingPoint,
+        ParameterError,
+        Plant,
+    )
+    from .plant import electrical_power, plant_vector_field, terminal_voltage
+    from .simulate import Trajectory, simulate
 
-    if path is None:
-        path = os.environ.get(
-            "SMIBJAX_CACHE_DIR", str(Path.home() / ".cache" / "smibjax" / "jax")
-        )
-    if path:
-        jax.config.update("jax_compilation_cache_dir", str(path))
-        jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.5)
-    return path or None
+
+def __getattr__(name: str):
+    """Load a public name (or a submodule, `sj.controllers`) on first use."""
+    if name in _EXPORTS:
+        value = getattr(importlib.import_module(f".{_EXPORTS[name]}", __name__), name)
+        globals()[name] = value
+        return value
+    try:
+        return importlib.import_module(f".{name}", __name__)
+    except ModuleNotFoundError as e:
+        if e.name != f"{__name__}.{name}":
+            raise
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}") from None
 
 
-__all__ = [
-    "enable_compilation_cache",
-    "ClosedLoop",
-    "Fault",
-    "FAULT_NAMES",
-    "GAIN_NAMES",
-    "Gains",
-    "InitialEstimates",
-    "Metrics",
-    "OperatingPoint",
-    "ParameterError",
-    "PLANT_NAMES",
-    "Plant",
-    "Stage",
-    "Trajectory",
-    "adaptation_rate",
-    "closed_loop_vector_field",
-    "control_law",
-    "drift_and_gain",
-    "drift_and_gain_closed_form",
-    "electrical_power",
-    "fault_stage",
-    "initial_state",
-    "metrics",
-    "paper_coordinates",
-    "plant_vector_field",
-    "simulate",
-    "spow",
-    "stage_at",
-    "terminal_voltage",
-]
+def __dir__() -> list[str]:
+    return sorted([*globals(), *_EXPORTS])
+
+
+class _Package(types.ModuleType):
+    """The package module. When a submodule loads, the import system binds it as an
+    attribute of its package; where a public function has the submodule's name
+    (`smibjax.simulate`, `smibjax.metrics`), the function is bound instead, so that
+    `sj.simulate(...)` works whichever was loaded first."""
+
+    def __setattr__(self, name, value):
+        if isinstance(value, types.ModuleType) and _EXPORTS.get(name) == name:
+            value = getattr(value, name)
+        super().__setattr__(name, value)
+
+
+sys.modules[__name__].__class__ = _Package
+
+
+__all__ = sorted(_EXPORTS)

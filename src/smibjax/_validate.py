@@ -108,3 +108,16 @@ def require_positive(name: str, v) -> None:
     """Raise `ParameterError` unless the number `v` is finite and > 0."""
     if not (np.isfinite(v) and v > 0):
         raise ParameterError(f"{name} = {v:g} is not allowed: must be > 0")
+
+
+def require_x64() -> None:
+    """A clear error where JAX runs in 32-bit mode: the closed loop is stiff and the
+    finite-time law works near phi = 0, where float32 is not enough."""
+    import jax
+
+    if not jax.config.jax_enable_x64:
+        raise RuntimeError(
+            "smibjax needs JAX's 64-bit mode: call "
+            "jax.config.update('jax_enable_x64', True) (or set JAX_ENABLE_X64=1) "
+            "before creating any array"
+        )

@@ -122,17 +122,21 @@ def _check_window(fault_time, reclose_time, t_end, tol, scan_step) -> float:
     window = reclose_time - fault_time
     if not (math.isfinite(fault_time) and fault_time >= 0):
         raise ParameterError(
-            f"fault time = {fault_time:g} is not allowed: must be >= 0"
+            f"fault_time = {fault_time:g} s is not allowed: must be >= 0"
+        )
+    if not math.isfinite(reclose_time):
+        raise ParameterError(
+            f"reclose_time = {reclose_time:g} s is not allowed: must be finite"
         )
     if not window > 0:
         raise ParameterError(
-            f"reclose time = {reclose_time:g} s is not allowed: must be after the "
-            f"fault time {fault_time:g} s"
+            f"reclose_time = {reclose_time:g} s is not allowed: must be after "
+            f"fault_time = {fault_time:g} s"
         )
     if not (math.isfinite(t_end) and t_end > reclose_time):
         raise ParameterError(
-            f"t_end = {t_end:g} s is not allowed: must be after the reclose time "
-            f"{reclose_time:g} s (fault time + window)"
+            f"t_end = {t_end:g} s is not allowed: must be after reclose_time = "
+            f"{reclose_time:g} s (the fault time plus the clearing window)"
         )
     if not MIN_TOL <= tol < window:
         raise ParameterError(
@@ -140,6 +144,40 @@ def _check_window(fault_time, reclose_time, t_end, tol, scan_step) -> float:
         )
     require_positive("scan_step", scan_step)
     return window
+
+
+def check_options(
+    fault_locations,
+    fault_time: float = 0.5,
+    reclose_time: float = 2.0,
+    fault_reactance: float = 0.0,
+    tol: float = 1e-3,
+    scan_step: float = 0.05,
+    t_end: float = 10.0,
+    criterion: str = "settled",
+) -> tuple[list[float], float]:
+    """Check the options of `critical_clearing_times` before any work (a
+    `ParameterError` naming the first bad value). Returns (fault locations as floats,
+    the clearing window t_reclose - t_fault (s))."""
+    if criterion not in CRITERIA:
+        raise ParameterError(
+            f"criterion = {criterion!r} is not allowed: must be one of "
+            f"{', '.join(CRITERIA)}"
+        )
+    locs = [float(x) for x in np.atleast_1d(fault_locations)]
+    if not locs:
+        raise ParameterError("fault_location: give at least one location")
+    for lam in locs:
+        if not 0 < lam < 1:
+            raise ParameterError(
+                f"fault_location = {lam:g} is not allowed: must be within (0, 1)"
+            )
+    window = _check_window(fault_time, reclose_time, t_end, tol, scan_step)
+    require_samples(t_end, 0.01)  # simulate's default sampling, as the lanes run
+    for lam in locs:  # every lane's extremes, before any work
+        for duration in (tol, window):
+            Fault(fault_time, fault_time + duration, reclose_time, lam, fault_reactance)
+    return locs, window
 
 
 def critical_clearing_times(
@@ -185,23 +223,16 @@ def critical_clearing_times(
     plant = Plant() if plant is None else plant
     op = OperatingPoint() if op is None else op
     init = InitialEstimates() if init is None else init
-    if criterion not in CRITERIA:
-        raise ParameterError(
-            f"criterion = {criterion!r} is not allowed: must be one of "
-            f"{', '.join(CRITERIA)}"
-        )
-    locs = [float(x) for x in np.atleast_1d(fault_locations)]
-    if not locs:
-        raise ParameterError("fault_location: give at least one location")
-    for lam in locs:
-        if not 0 < lam < 1:
-            raise ParameterError(
-                f"fault location {lam:g} is not allowed: must be within (0, 1)"
-            )
-    window = _check_window(fault_time, reclose_time, t_end, tol, scan_step)
-    require_samples(t_end, 0.01)  # simulate's default sampling, as the lanes run
-    for duration in (tol, window):  # the lanes' extremes, before any work
-        Fault(fault_time, fault_time + duration, reclose_time, locs[0], fault_reactance)
+    locs, window = check_options(
+        fault_locations,
+        fault_time,
+        reclose_time,
+        fault_reactance,
+        tol,
+        scan_step,
+        t_end,
+        criterion,
+    )
     if not gain_sets:
         raise ParameterError("give at least one gain set")
     names = list(gain_sets)

@@ -14,23 +14,22 @@ the gains beside what they were tuned for:
       "gains": {"beta1": -1.0, ...}          # parameter name -> number
     }
 
-The old format, a flat table of gain name -> number, still loads: `read` returns it
-with `legacy=True` and the paper's context (controller by alpha: aftsc if alpha < 1,
-asc if alpha = 1; oracle adaptation; paper preset). `resolve` settles each context
+The old format, a flat table of gain name -> number, still loads
+(`smibjax.cli.files.read_gains_file`) as `legacy(gains)`, with the paper's context
+(controller by alpha: aftsc if alpha < 1, asc if alpha = 1; oracle adaptation; paper
+preset). `resolve` settles each context
 entry as: the command-line flag if given, else the file, else the paper's default,
 and returns the warnings and notes for the caller to print.
 
-This module reads and writes files (like `io.py`, it sits at the edge, outside the
-numerical core); it never prints.
+This module holds the schema (validation, the context and its resolution); it never
+reads, writes or prints: `smibjax.cli.files` reads and writes gains files.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import math
-import os
 from collections.abc import Callable
-from pathlib import Path
 
 from .controllers import CONTROLLERS, Synergetic, controller_parameter_names
 from .parameters import GAIN_NAMES, PLANT_NAMES, PRESETS, ParameterError
@@ -42,8 +41,7 @@ __all__ = [
     "OPTION_CHECKS",
     "GainsFile",
     "Context",
-    "read",
-    "write",
+    "legacy",
     "validate",
     "resolve",
     "is_schema_table",
@@ -300,45 +298,33 @@ def _check_alpha(controller: str, gains: dict, path) -> None:
         )
 
 
-def read(path: str | os.PathLike, complete: bool = False) -> GainsFile:
-    """A gains file, schema or flat table (`legacy`, with the paper's context: aftsc
-    unless alpha = 1, oracle adaptation, paper preset). With `complete`, every gain of
-    `GAIN_NAMES` must be there (a gain set for batch studies)."""
-    from .io import read_data, read_gains
+def legacy(gains: dict) -> GainsFile:
+    """A flat table of gains as a gains file with the paper's context: aftsc unless
+    alpha = 1 (asc), oracle adaptation, paper preset."""
+    controller = "asc" if gains.get("alpha") == 1.0 else "aftsc"
+    return GainsFile(
+        controller,
+        DEFAULTS["adaptation"],
+        {"preset": DEFAULTS["preset"]},
+        {},
+        dict(gains),
+        legacy=True,
+    )
 
-    p = Path(path)
-    data = read_data(p)
-    if is_schema_table(data):
-        gf = validate(data, p)
-    else:
-        gains = read_gains(p)  # the flat-table checks, one place
-        controller = "asc" if gains.get("alpha") == 1.0 else "aftsc"
-        gf = GainsFile(
-            controller,
-            DEFAULTS["adaptation"],
-            {"preset": DEFAULTS["preset"]},
-            {},
-            gains,
-            legacy=True,
+
+def check_complete(gf: GainsFile, path=None) -> None:
+    """For batch studies: the paper's law needs every gain but c1, c2 (1: the
+    paper's form)."""
+    if CONTROLLERS[gf.controller] is not Synergetic:
+        return
+    required = [g for g in GAIN_NAMES if g not in ("c1", "c2")]
+    missing = [g for g in required if g not in gf.gains]
+    if missing:
+        raise ParameterError(
+            f"gain {missing[0]!r} is missing"
+            + (f" from {str(path)!r}" if path is not None else "")
+            + f": a gain set needs all of {', '.join(required)}"
         )
-    if complete and CONTROLLERS[gf.controller] is Synergetic:
-        required = [g for g in GAIN_NAMES if g not in ("c1", "c2")]
-        missing = [g for g in required if g not in gf.gains]
-        if missing:
-            raise ParameterError(
-                f"gain {missing[0]!r} is missing from {str(p)!r}: a gain set needs "
-                f"all of {', '.join(required)}"
-            )
-    return gf
-
-
-def write(path: str | os.PathLike, gf: GainsFile) -> Path:
-    """Write `gf` as schema JSON (atomically), after validating it."""
-    from .io import write_json
-
-    data = gf.to_dict()
-    validate(data, path)
-    return write_json(path, data)
 
 
 def resolve(

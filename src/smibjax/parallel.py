@@ -1,7 +1,8 @@
 """Run a batch function over all CPU devices.
 
 XLA's CPU backend runs a vmapped batch on one core. With several host devices
-(`--xla_force_host_platform_device_count=N`, set by the command-line tools) the batch is
+(`--xla_force_host_platform_device_count=N`, set by the entry points:
+`smibjax.cli.process.use_host_devices`) the batch is
 split along its leading axis over the devices, so N cores work at once. Two ways:
 
 - `device_map`: each slice is committed to its own device and the same jitted function
@@ -26,24 +27,7 @@ from jax.sharding import PartitionSpec as P
 
 from ._compat import shard_map_closure_fix
 
-__all__ = ["device_map", "shard_batch", "split_batch", "use_host_devices"]
-
-
-def use_host_devices(minimum: int = 1) -> None:
-    """Ask XLA for one CPU host device per core (at least `minimum`), each without
-    intra-op threads on top (measured: AFTSC at batch 4096 on 2 devices, 314 -> 354
-    scenarios/s). Takes effect only before JAX starts its CPU backend (importing
-    smibjax does not start it); a device count already in XLA_FLAGS is respected."""
-    import os
-
-    flags = os.environ.get("XLA_FLAGS", "")
-    if "--xla_force_host_platform_device_count" in flags:
-        return
-    n = max(os.cpu_count() or 1, minimum)
-    os.environ["XLA_FLAGS"] = (
-        f"{flags} --xla_force_host_platform_device_count={n}"
-        " --xla_cpu_multi_thread_eigen=false"
-    ).strip()
+__all__ = ["device_map", "shard_batch", "split_batch"]
 
 
 @lru_cache(maxsize=8)

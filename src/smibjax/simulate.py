@@ -44,6 +44,7 @@ from ._validate import (
     require_in_horizon,
     require_positive,
     require_samples,
+    require_x64,
 )
 from .closed_loop import (
     ClosedLoop,
@@ -354,6 +355,7 @@ def simulate(
 
     **Returns:** a `Trajectory`.
     """
+    require_x64()
     controller = _resolve_controller(gains, adaptation)
     fault = Fault() if fault is None else fault
     plant = Plant() if plant is None else plant

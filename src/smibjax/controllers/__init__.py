@@ -33,6 +33,7 @@ __all__ = [
     "make_controller",
     "controller_parameter_names",
     "project",
+    "describe",
 ]
 
 CONTROLLERS: dict[str, type[AbstractController]] = {
@@ -91,3 +92,19 @@ def make_controller(
             f"a projection box is an option of aftsc/asc, not of controller {name!r}"
         )
     return cls(**params)
+
+
+def describe(params) -> str:
+    """A one-line label of a parameter set or controller for titles and reports:
+    'AFTSC: beta = (-1, -1), alpha = 0.714' for the paper's law (ASC where alpha =
+    1), 'no control', 'AVR + PSS + SVC regulator'."""
+    gains = params.gains if isinstance(params, Synergetic) else params
+    if isinstance(gains, Gains):
+        a = float(gains.alpha)
+        return (
+            f"{'AFTSC' if a < 1 else 'ASC'}: beta = ({float(gains.beta1):g}, "
+            f"{float(gains.beta2):g}), alpha = {a:.3g}"
+        )
+    return {NoControl: "no control", AvrPss: "AVR + PSS + SVC regulator"}.get(
+        type(params), type(params).__name__
+    )

@@ -22,7 +22,7 @@ same environment, one process and one thread per core, for example:
     dask worker tcp://SCHEDULER:8786 --nworkers $(nproc) --nthreads 1
 
 (`dask scheduler` starts the scheduler; every worker needs the same smibjax and JAX
-versions as the client: the task is sent by reference to `smibjax.cluster._run_chunk`.)
+versions as the client: the task is sent by reference to `smibjax.cli.cluster._run_chunk`.)
 Dask is an optional extra: `pip install 'smibjax[cluster]'`.
 """
 
@@ -35,8 +35,8 @@ import json
 import os
 from collections.abc import Iterable, Iterator
 
-from .montecarlo import MonteCarloSpec, compute_chunk
-from .parameters import ParameterError
+from ..montecarlo import MonteCarloSpec, compute_chunk
+from ..parameters import ParameterError
 
 __all__ = ["DaskRunner", "dask_runner", "chunk_key", "worker_env"]
 
@@ -73,6 +73,7 @@ def worker_env() -> dict[str, str]:
         "XLA_FLAGS": " ".join([*kept, *_WORKER_XLA_FLAGS]),
         "JAX_PLATFORMS": "cpu",
         "JAX_ENABLE_X64": "1",
+        "EQX_ON_ERROR": os.environ.get("EQX_ON_ERROR", "nan"),
         "OMP_NUM_THREADS": "1",
         "MKL_NUM_THREADS": "1",
         "OPENBLAS_NUM_THREADS": "1",
@@ -96,15 +97,17 @@ def _setup_worker() -> None:
     its parent's main module, before the nanny sets the worker's environment)."""
     import jax
 
-    jax.config.update("jax_enable_x64", True)
+    from .process import configure_process
+
+    cache = os.environ.get("JAX_COMPILATION_CACHE_DIR")
+    configure_process(
+        host_devices=False,
+        cache=bool(cache) and not jax.config.jax_compilation_cache_dir,
+        cache_dir=cache,
+    )
     platforms = os.environ.get("JAX_PLATFORMS")
     if platforms and jax.config.jax_platforms != platforms:
         jax.config.update("jax_platforms", platforms)
-    cache = os.environ.get("JAX_COMPILATION_CACHE_DIR")
-    if cache and not jax.config.jax_compilation_cache_dir:
-        from . import enable_compilation_cache
-
-        enable_compilation_cache(cache)
 
 
 def _run_chunk(spec: MonteCarloSpec, k: int) -> dict:

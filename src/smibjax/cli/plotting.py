@@ -1,17 +1,19 @@
-"""Figures of trajectories (matplotlib, Agg backend, written atomically in the format
-their file name's suffix names: .png, .pdf, .svg, ...)."""
+"""Figures of trajectories, written atomically in the format their file name's suffix
+names (.png, .pdf, .svg, ...).
+
+Figures are made with matplotlib's object-oriented API (`matplotlib.figure.Figure`),
+not pyplot: nothing here selects a backend or keeps figures in a global registry, so
+importing this module changes nothing in the user's matplotlib session.
+"""
 
 from __future__ import annotations
 
 import os
 
-import matplotlib
+import numpy as np
+from matplotlib.figure import Figure
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-
-from .io import atomic_write  # noqa: E402
+from .files import atomic_write
 
 __all__ = [
     "trajectory_arrays",
@@ -19,6 +21,9 @@ __all__ = [
     "plot_figure",
     "plot_montecarlo",
     "plot_cct",
+    "plot_islands",
+    "subplots",
+    "save_figure",
 ]
 
 _STYLES = ["-", ":", "--", "-."]
@@ -77,7 +82,7 @@ def check_plot_path(path, option: str = "--plot"):
     .svg, ...); otherwise a one-line `ParameterError`."""
     from pathlib import Path
 
-    from .parameters import ParameterError
+    from ..parameters import ParameterError
 
     p = Path(path)
     fmt = p.suffix[1:].lower()
@@ -90,11 +95,17 @@ def check_plot_path(path, option: str = "--plot"):
     return p
 
 
-def _save(fig, path) -> None:
+def subplots(nrows: int = 1, ncols: int = 1, **kw):
+    """(figure, axes) as `pyplot.subplots` makes them, without pyplot: `figsize`
+    goes to the figure, the rest to `Figure.subplots`."""
+    fig = Figure(figsize=kw.pop("figsize", None))
+    return fig, fig.subplots(nrows, ncols, **kw)
+
+
+def save_figure(fig, path) -> None:
     """Write `fig` in the format its file name's suffix asks for (PNG without one)."""
     fmt = os.path.splitext(str(path))[1][1:].lower() or "png"
     atomic_write(path, lambda tmp: fig.savefig(tmp, dpi=110, format=fmt))
-    plt.close(fig)
 
 
 def _note_lost(fig, runs):
@@ -136,9 +147,7 @@ def plot_figure(
             ("B", None, "B (pu)", None),
         ],
     }[kind]
-    fig, axes = plt.subplots(
-        len(spec), 1, figsize=(8, 2.3 * len(spec) + 0.6), sharex=True
-    )
+    fig, axes = subplots(len(spec), 1, figsize=(8, 2.3 * len(spec) + 0.6), sharex=True)
     for ax, (key, col, ylabel, true) in zip(axes, spec, strict=True):
         _panels(ax, runs, key, col, ylabel, true)
     axes[0].legend(fontsize=8, loc="best")
@@ -146,7 +155,7 @@ def plot_figure(
     fig.suptitle(title, fontsize=11)
     _note_lost(fig, runs)
     fig.tight_layout(rect=(0, 0.02, 1, 1))
-    _save(fig, path)
+    save_figure(fig, path)
 
 
 def plot_trajectory(
@@ -165,7 +174,7 @@ def plot_trajectory(
         ("u_f", None, "u_f (pu)", None),
         ("u_r", None, "u_r (pu)", None),
     ]
-    fig, axes = plt.subplots(5, 2, figsize=(11, 11), sharex=True)
+    fig, axes = subplots(5, 2, figsize=(11, 11), sharex=True)
     for ax, (key, col, ylabel, true) in zip(axes.T.ravel(), rows, strict=True):
         _panels(ax, {"run": a}, key, col, ylabel, true)
     for ax in axes[-1]:
@@ -173,7 +182,7 @@ def plot_trajectory(
     fig.suptitle(title, fontsize=11)
     _note_lost(fig, {"run": a})
     fig.tight_layout(rect=(0, 0.02, 1, 1))
-    _save(fig, path)
+    save_figure(fig, path)
 
 
 def plot_montecarlo(rows: dict[str, np.ndarray], path, title: str = "") -> None:
@@ -182,7 +191,7 @@ def plot_montecarlo(rows: dict[str, np.ndarray], path, title: str = "") -> None:
     time, red x = unstable."""
     stable = rows["stable"].astype(bool)
     ts = rows["settling_time"]
-    fig, axes = plt.subplots(1, 3, figsize=(15, 4.3))
+    fig, axes = subplots(1, 3, figsize=(15, 4.3))
     ax = axes[0]
     good = stable & np.isfinite(ts)
     if good.any():
@@ -210,7 +219,7 @@ def plot_montecarlo(rows: dict[str, np.ndarray], path, title: str = "") -> None:
         a.grid(alpha=0.3)
     fig.suptitle(title)
     fig.tight_layout()
-    _save(fig, path)
+    save_figure(fig, path)
 
 
 def plot_islands(ax, result: dict, label: str, color) -> None:
@@ -244,7 +253,7 @@ def plot_cct(result: dict, path, title: str = "") -> None:
     the top edge where the CCT exceeds the window, on the bottom where the run is
     unstable even for the shortest fault; where stability is not monotone, a red ring
     on the CCT and bars over the later stable islands of clearing durations (s)."""
-    fig, ax = plt.subplots(figsize=(7, 4.3))
+    fig, ax = subplots(figsize=(7, 4.3))
     window = result["window"]
     for label, r in result["sets"].items():
         loc = np.asarray(result["fault_location"], dtype=float)
@@ -281,4 +290,4 @@ def plot_cct(result: dict, path, title: str = "") -> None:
         or "critical clearing time (^: beyond window, v: none, ring: non-monotone)"
     )
     fig.tight_layout()
-    _save(fig, path)
+    save_figure(fig, path)

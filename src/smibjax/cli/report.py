@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import math
 
-from .metrics import Metrics
+from ..controllers import describe
+from ..metrics import Metrics
 
 __all__ = ["metrics_dict", "format_summary", "markdown_table"]
 
@@ -31,16 +32,7 @@ def _g(x: float, spec: str) -> str:
 def format_summary(gains, fault, plant, traj, m: Metrics, args=None) -> str:
     """A few lines: verdict, settling times, overshoot, effort, solver steps."""
     d = metrics_dict(m)
-    if hasattr(gains, "alpha"):
-        c = "AFTSC" if float(gains.alpha) < 1 else "ASC"
-        head = (
-            f"{c} (alpha = {float(gains.alpha):.4g}, beta = {float(gains.beta1):g}/"
-            f"{float(gains.beta2):g})"
-        )
-    else:
-        head = {"NoControl": "no control", "AvrPss": "AVR + PSS + SVC regulator"}.get(
-            type(gains).__name__, type(gains).__name__
-        )
+    head = describe(gains)
     if bool(traj.lost_sync):
         verdict = f"UNSTABLE: lost synchronism at t = {float(traj.t_stop):.3f} s"
     elif bool(traj.budget_exhausted):

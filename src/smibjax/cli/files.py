@@ -8,7 +8,8 @@ import tempfile
 from collections.abc import Callable
 from pathlib import Path
 
-from .parameters import GAIN_NAMES, ParameterError
+from ..gainsfile import GainsFile, check_complete, is_schema_table, legacy, validate
+from ..parameters import GAIN_NAMES, ParameterError
 
 try:  # Python >= 3.11
     import tomllib
@@ -26,6 +27,8 @@ __all__ = [
     "write_npz",
     "file_mode",
     "check_new_file",
+    "read_gains_file",
+    "write_gains_file",
 ]
 
 
@@ -74,9 +77,6 @@ def read_gains(path: str | os.PathLike, complete: bool = False) -> dict[str, flo
     """Gain values from a flat JSON/TOML table whose keys are gain names; with
     `complete`, all nine gains must be there (a gain set for batch studies). A gains
     file with context (schema `smibjax.gains/1`, `gainsfile.py`) gives its gains."""
-    from .gainsfile import is_schema_table
-    from .gainsfile import read as read_gains_file
-
     if is_schema_table(read_data(path)):
         return read_gains_file(path, complete=complete).gains
     table = read_table(path)
@@ -174,3 +174,22 @@ def write_npz(path: str | os.PathLike, arrays: dict) -> Path:
             np.savez(fh, **arrays)
 
     return atomic_write(path, _w)
+
+
+def read_gains_file(path: str | os.PathLike, complete: bool = False) -> GainsFile:
+    """A gains file (`smibjax.gainsfile`): schema, or a flat table of gains (`legacy`,
+    with the paper's context). With `complete`, the paper's law needs every gain but
+    c1, c2 (a gain set for batch studies)."""
+    p = Path(path)
+    data = read_data(p)
+    gf = validate(data, p) if is_schema_table(data) else legacy(read_gains(p))
+    if complete:
+        check_complete(gf, p)
+    return gf
+
+
+def write_gains_file(path: str | os.PathLike, gf: GainsFile) -> Path:
+    """Write `gf` as schema JSON (atomically), after validating it."""
+    data = gf.to_dict()
+    validate(data, path)
+    return write_json(path, data)

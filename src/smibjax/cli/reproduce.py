@@ -8,14 +8,14 @@ from pathlib import Path
 
 import numpy as np
 
-from .io import atomic_write, write_json, write_npz, write_text
-from .metrics import metrics
-from .parameters import Fault, Gains, Plant
+from ..metrics import metrics
+from ..parameters import Fault, Gains, Plant
+from ..simulate import simulate
+from .files import atomic_write, write_json, write_npz, write_text
 from .plotting import plot_figure, trajectory_arrays
 from .report import markdown_table, metrics_dict
-from .simulate import simulate
 
-__all__ = ["GAIN_SETS", "reproduce"]
+__all__ = ["GAIN_SETS", "reproduce", "add_parser", "run"]
 
 GAIN_SETS = {
     "paper": {},  # beta1 = beta2 = 50: the paper's gains
@@ -122,3 +122,29 @@ def reproduce(out: Path, preset: str = "paper", t_end: float = 10.0) -> dict:
     write_json(out / "metrics.json", table)
     print(f"wrote figures, data and metrics.md to {out}")
     return table
+
+
+def add_parser(sub) -> None:
+    from .options import add_force, positive
+
+    r = sub.add_parser("reproduce", help="the paper's section 4 case, figures + table")
+    r.add_argument("--out", default="results/reproduce", help="output folder")
+    r.add_argument("--preset", choices=["paper", "realistic"], default="paper")
+    r.add_argument("--t-end", type=positive, default=10.0, help="horizon (s)")
+    add_force(r)
+    r.set_defaults(func=run, flags=r.flags)
+
+
+def run(args) -> int:
+    from .options import CLIError
+
+    out = Path(args.out)
+    if out.exists() and not out.is_dir():
+        raise CLIError(f"--out = {str(out)!r} is not allowed: must be a folder")
+    if out.is_dir() and any(out.iterdir()) and not args.force:
+        raise CLIError(
+            f"--out = {str(out)!r} is not allowed: must be a new or empty folder (it "
+            "holds files; add --force to replace the ones reproduce writes)"
+        )
+    reproduce(out, preset=args.preset, t_end=args.t_end)
+    return 0

@@ -10,14 +10,16 @@ adaptation mode, plant): the flags if given, else the file's, else the paper's
 
 from __future__ import annotations
 
+import argparse
 import math
+import sys
 from pathlib import Path
 
 import numpy as np
 
-from .gainsfile import Context, read, resolve
-from .io import write_json, write_text
-from .parameters import GAIN_NAMES, Gains, ParameterError
+from ..gainsfile import Context, resolve
+from ..parameters import GAIN_NAMES, Gains, ParameterError
+from .files import read_gains_file, write_json, write_text
 
 __all__ = [
     "BUILTIN_SETS",
@@ -26,6 +28,8 @@ __all__ = [
     "compare_table",
     "plot_compare",
     "merge_cct",
+    "add_parser",
+    "run",
 ]
 
 # Built-in gain sets: the paper's (which lose synchronism, MODEL.md section 2) and
@@ -43,7 +47,7 @@ BUILTIN_SETS = {
 def _parameters(controller: str, values: dict):
     """The parameter set of `controller`: the paper's `Gains` for aftsc/asc (the
     controller's alpha), the controller itself otherwise."""
-    from .controllers import CONTROLLERS, Synergetic, make_controller
+    from ..controllers import CONTROLLERS, Synergetic, make_controller
 
     if CONTROLLERS[controller] is Synergetic:
         return Gains.paper(controller, **values)
@@ -72,7 +76,7 @@ def resolve_gain_set_context(
             f"--gains {spec!r}: no such file, and not a built-in set "
             f"({', '.join(BUILTIN_SETS)})"
         )
-    gf = read(path, complete=True)
+    gf = read_gains_file(path, complete=True)
     ctx, values, messages = resolve(
         gf, None, adaptation, preset, source=f"--gains {spec}"
     )
@@ -95,7 +99,7 @@ def context_text(ctx: dict) -> tuple[str, str, str]:
     is its preset plus any field the file overrides, e.g. 'realistic (uf_max=3)'."""
     plant = dict(ctx["plant"])
     preset = plant.pop("preset")
-    from .parameters import PRESETS
+    from ..parameters import PRESETS
 
     base = PRESETS[preset]
     extra = [
@@ -136,7 +140,7 @@ def _fmt(x, spec=".2f") -> str:
     )
 
 
-def _islands_text(islands) -> str:
+def islands_text(islands) -> str:
     """Stable islands of clearing durations as '[0.4, 0.45] s'."""
     return ", ".join(f"[{lo:g}, {hi:g}] s" for lo, hi in islands)
 
@@ -163,7 +167,7 @@ def compare_table(
         for v, status, isl in zip(
             r["cct"], r["status"], r.get("islands", [[]] * len(locs)), strict=True
         ):
-            again = f" (stable again {_islands_text(isl)})" if isl else ""
+            again = f" (stable again {islands_text(isl)})" if isl else ""
             if status == "exceeds_window":
                 cells.append(f"> {cct['window']:.3g}")
             elif status == "unstable_at_min":
@@ -183,10 +187,10 @@ def compare_table(
 def plot_compare(rows: dict[str, dict], cct: dict, path) -> None:
     """Left: stable fraction per set; middle: settling-time distributions (stable
     scenarios); right: CCT against fault location per set."""
-    from .plotting import _save, plot_islands, plt
+    from .plotting import plot_islands, save_figure, subplots
 
     names = list(rows)
-    fig, axes = plt.subplots(1, 3, figsize=(16, 4.5))
+    fig, axes = subplots(1, 3, figsize=(16, 4.5))
     frac = [float(np.mean(rows[n]["stable"])) for n in names]
     axes[0].bar(range(len(names)), [100 * f for f in frac], color="C0")
     axes[0].set_xticks(range(len(names)), names, rotation=20)
@@ -216,7 +220,7 @@ def plot_compare(rows: dict[str, dict], cct: dict, path) -> None:
     for a in axes:
         a.grid(alpha=0.3)
     fig.tight_layout()
-    _save(fig, path)
+    save_figure(fig, path)
 
 
 def write_compare(out: Path, summaries, rows, cct, contexts=None) -> None:
@@ -234,3 +238,132 @@ def write_compare(out: Path, summaries, rows, cct, contexts=None) -> None:
         {"context": contexts, "montecarlo": summaries, "cct": cct},
     )
     plot_compare(rows, cct, out / "compare.png")
+
+
+def add_parser(sub) -> None:
+    from .cct import add_cct_options
+    from .montecarlo import add_mc_options
+    from .options import add_max_steps, add_tolerances
+
+    k = sub.add_parser(
+        "compare", help="Monte Carlo and CCT of several gain sets side by side"
+    )
+    k.add_argument(
+        "--gains",
+        action="append",
+        metavar="FILE|NAME",
+        help="a complete gains file or a built-in set (paper, paper-asc, stable, "
+        "stable-asc, none, avr-pss); repeat for each set (default: paper, "
+        "paper-asc, stable)",
+    )
+    k.add_argument(
+        "--set",
+        metavar="NAME=VALUE",
+        action="append",
+        default=[],
+        help="override a gain (all sets), plant or operating-point value",
+    )
+    k.add_argument(
+        "--preset",
+        choices=["paper", "realistic"],
+        default=None,
+        help="plant of every set (default: each file's, else paper)",
+    )
+    k.add_argument(
+        "--adaptation",
+        choices=["oracle", "realizable"],
+        default=None,
+        help="adaptation of every set (default: each file's, else oracle)",
+    )
+    add_max_steps(k)
+    add_tolerances(k)
+    add_mc_options(k, 1000)
+    add_cct_options(k, with_reactance=False)
+    k.add_argument("--out", metavar="DIR", help="output folder (default: runs/...)")
+    k.set_defaults(func=run, flags=k.flags)
+
+
+def run(args) -> int:
+    from .cct import check_args, progress_bar, run_grouped
+    from .montecarlo import run_folder, runner_of, spec_from_args
+    from .options import (
+        CLIError,
+        build_parameters,
+        controller_of,
+        fresh_out,
+        parse_sets,
+        read_dist,
+        warn_plant_sets,
+    )
+
+    check_args(args)
+    sets = parse_sets(args.set)
+    specs = args.gains or ["paper", "paper-asc", "stable"]
+    gain_sets, contexts = {}, {}
+    for spec in specs:
+        label, g, ctx, messages = resolve_gain_set_context(
+            spec, sets, args.adaptation, args.preset
+        )
+        for m in messages:
+            print(f"smibjax: {m}", file=sys.stderr)
+        warn_plant_sets(ctx, sets)
+        base, i = label, 2
+        while label in gain_sets:
+            label, i = f"{base}-{i}", i + 1
+        gain_sets[label], contexts[label] = g, ctx
+    # each set under its own plant and adaptation: (plant, op, init) per set
+    parts = {
+        label: build_parameters(
+            ctx.controller, ctx.preset, None, sets, plant_values=ctx.plant
+        )[1:]
+        for label, ctx in contexts.items()
+    }
+    dist = read_dist(args.dist)
+    out = Path(args.out) if args.out else fresh_out("compare")
+    if out.exists() and any(out.iterdir()) and not args.resume:
+        raise CLIError(
+            f"--out {str(out)!r} exists and is not empty: choose a new folder or add "
+            "--resume"
+        )
+    summaries, rows = {}, {}
+    with runner_of(args) as runner:
+        for label, g in gain_sets.items():
+            print(f"== {label}")
+            plant, op, init = parts[label]
+            args_set = argparse.Namespace(
+                **{
+                    **vars(args),
+                    "adaptation": contexts[label].adaptation,
+                    "controller": contexts[label].controller,
+                    "context": contexts[label],
+                }
+            )
+            spec = spec_from_args(args_set, g, plant, op, init, dist)
+            sub = out / label
+            resume = args.resume and (sub / "run.json").is_file()
+            r, s = run_folder(spec, sub, resume, runner, label)
+            summaries[label], rows[label] = s, r
+    # one CCT sweep per (adaptation, plant) group of sets
+    groups: dict[tuple, list[str]] = {}
+    for label, ctx in contexts.items():
+        key = (ctx.adaptation, ctx.preset, tuple(sorted(ctx.plant.items())))
+        groups.setdefault(key, []).append(label)
+    results = []
+    for (adaptation, *_), labels in groups.items():
+        plant, op, init = parts[labels[0]]
+        lanes = {
+            n: controller_of(gain_sets[n], adaptation, contexts[n]) for n in labels
+        }
+        args_group = argparse.Namespace(**{**vars(args), "adaptation": adaptation})
+        results.append(run_grouped(args_group, lanes, plant, op, init, progress_bar()))
+    res = merge_cct(results, list(gain_sets))
+    write_compare(
+        out,
+        summaries,
+        rows,
+        res,
+        {label: ctx.describe() for label, ctx in contexts.items()},
+    )
+    print((out / "compare.md").read_text())
+    print(f"wrote {out}/compare.md, compare.json, compare.png")
+    return 0

@@ -1,0 +1,81 @@
+"""The command line and everything at the edge of smibjax: `python -m smibjax
+{simulate,reproduce,montecarlo,cct,compare} ...`, run folders, files and plots.
+
+Layout: `process` (what an entry point sets up: devices, float64, equinox's error
+mode, the compilation cache), `options` (the shared parser and options, also the
+tuner's), `files` (reading TOML/JSON and gains files, atomic writes), one module per
+command (`simulate`, `montecarlo`, `cct`, `compare`, `reproduce`), `runs` (Monte
+Carlo run folders and resume), `cluster` (Dask), `plotting` and `report`.
+
+Bad input ends with one line on stderr (`smibjax: error: ...`) and exit status 2; no
+traceback. Importing this package loads neither JAX nor equinox: `main` configures
+the process first (`process.configure_process`).
+"""
+
+from __future__ import annotations
+
+import sys
+
+__all__ = ["main", "run"]
+
+
+def _parser():
+    from .. import __version__
+    from . import cct, compare, montecarlo, reproduce, simulate
+    from .options import Parser
+
+    top = Parser(
+        prog="python -m smibjax",
+        description=(
+            "Differentiable SMIB + SVC simulator under adaptive finite-time synergetic "
+            "control."
+        ),
+    )
+    top.add_argument("--version", action="version", version=f"smibjax {__version__}")
+    sub = top.add_subparsers(dest="command", required=True, parser_class=Parser)
+    for command in (simulate, reproduce, montecarlo, cct, compare):
+        command.add_parser(sub)
+    return top
+
+
+def run() -> None:
+    """Console entry point (`smibjax`, `python -m smibjax`): `main`, then exit.
+
+    Everything is written and closed by then; `gc.freeze()` spares the interpreter's
+    final garbage collection over JAX's traced objects, which took ~0.3 s of every
+    exit (measured after one `simulate`: exit 0.34 -> 0.07 s)."""
+    import gc
+
+    code = main()
+    gc.freeze()
+    sys.exit(code)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point; returns the exit status."""
+    from .process import configure_process
+
+    configure_process()
+    from ..parameters import ParameterError
+    from .options import CLIError, one_line
+
+    args = None
+    try:
+        args = _parser().parse_args(argv)
+        return args.func(args)
+    except CLIError as e:
+        print(f"smibjax: error: {e}", file=sys.stderr)
+        return 2
+    except ParameterError as e:
+        flags = getattr(args, "flags", set())
+        print(f"smibjax: error: {one_line(e, flags)}", file=sys.stderr)
+        return 2
+    except OSError as e:
+        print(
+            f"smibjax: error: {e.strerror or e}: {e.filename or ''}".rstrip(": "),
+            file=sys.stderr,
+        )
+        return 2
+    except KeyboardInterrupt:
+        print("smibjax: interrupted", file=sys.stderr)
+        return 130

@@ -1,0 +1,348 @@
+"""The command line's shared options: one parser class (also the tuner's), the
+options every command shares, and the parameter sets they build.
+
+Values are validated once, by the library (`ParameterError`); `Parser` only types
+them, and `one_line` turns a library error into the one line the user reads, naming
+the command-line flag of the value where there is one.
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime
+import math
+import re
+import sys
+from pathlib import Path
+
+from ..controllers import CONTROLLERS, Synergetic, make_controller
+from ..gainsfile import Context, resolve
+from ..parameters import (
+    GAIN_NAMES,
+    PLANT_NAMES,
+    PRESETS,
+    Gains,
+    InitialEstimates,
+    OperatingPoint,
+    ParameterError,
+    Plant,
+)
+from ..scenarios import ScenarioDistribution
+from .files import read_data, read_gains, read_gains_file
+
+__all__ = [
+    "CLIError",
+    "Parser",
+    "one_line",
+    "positive",
+    "add_common",
+    "add_force",
+    "add_max_steps",
+    "add_tolerances",
+    "parse_sets",
+    "build_parameters",
+    "build_from_args",
+    "controller_of",
+    "parameter_values",
+    "read_dist",
+    "fresh_out",
+    "warn_plant_sets",
+]
+
+
+class CLIError(Exception):
+    """A user error to report on one line."""
+
+
+class Parser(argparse.ArgumentParser):
+    """argparse's parser with one-line errors (no usage dump), arguments left over
+    reported with the help of the (sub)command they were given to, and the set of
+    its long flags (`flags`, for `one_line`)."""
+
+    def add_argument(self, *names, **kw):
+        if "flags" not in self.__dict__:
+            self.flags: set[str] = set()
+        self.flags.update(n for n in names if n.startswith("--"))
+        return super().add_argument(*names, **kw)
+
+    def error(self, message):
+        raise CLIError(f"{message} (see `{self.prog} --help`)")
+
+    def parse_args(self, args=None, namespace=None):
+        ns, extras = self.parse_known_args(args, namespace)
+        if extras:
+            command = getattr(ns, "command", None)
+            prog = f"{self.prog} {command}" if command else self.prog
+            raise CLIError(
+                f"unrecognized arguments: {' '.join(extras)} (see `{prog} --help`)"
+            )
+        return ns
+
+
+def one_line(error: Exception, flags: set[str] = frozenset()) -> str:
+    """The message of a library error with the values the command takes as flags
+    named as the user writes them: the refused one (`t_end = 1.5 s is not allowed`
+    -> `--t-end 1.5 s is not allowed`) and those the reason refers to (`must be
+    after reclose_time = 2 s` -> `must be after --reclose-time 2 s`)."""
+
+    def flag(m: re.Match) -> str:
+        f = "--" + m.group(1).replace("_", "-")
+        return f"{f} {m.group(2)}" if f in flags else m.group(0)
+
+    name = r"(?<![\w.-])([a-z][a-z0-9_]*) = "
+    text = str(error)
+    head, sep, reason = text.partition(" is not allowed")
+    head = re.sub(name + r"(\S+(?: s)?)$", flag, head)
+    reason = re.sub(name + r"(\S+)", flag, reason)
+    return head + sep + reason
+
+
+def positive(text: str) -> float:
+    """An argparse type: a finite number > 0 (a tolerance, a horizon, a sampling
+    interval), checked while parsing, before any work starts."""
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"invalid float value: {text!r}") from None
+    if not (math.isfinite(v) and v > 0):
+        raise argparse.ArgumentTypeError(f"{text} is not allowed: must be > 0")
+    return v
+
+
+def add_common(p: Parser, several_controllers: bool = False) -> None:
+    """--controller (one, or `several_controllers`), --preset, --gains, --set,
+    --adaptation, --max-steps."""
+    p.add_argument(
+        "--controller",
+        choices=list(CONTROLLERS),
+        nargs="+" if several_controllers else None,
+        default=None,
+        help=(
+            "one or more of " + ", ".join(CONTROLLERS) + " (default: the gains "
+            "file's, else aftsc)"
+            if several_controllers
+            else "aftsc (alpha = 5/7), asc (alpha = 1), none (E_fd0 held, u_r = 0) "
+            "or avr-pss (exciter + PSS + SVC regulator); default: the gains file's, "
+            "else aftsc"
+        ),
+    )
+    p.add_argument(
+        "--preset",
+        choices=list(PRESETS),
+        default=None,
+        help="plant input limits: paper (none) or realistic; default: the gains "
+        "file's, else paper",
+    )
+    p.add_argument(
+        "--gains",
+        metavar="FILE",
+        help="gains file (JSON/TOML): with context (schema smibjax.gains/1, as the "
+        "tuner writes) or a flat table of gains",
+    )
+    p.add_argument(
+        "--set",
+        metavar="NAME=VALUE",
+        action="append",
+        default=[],
+        help="override a gain, plant or operating-point value (repeatable)",
+    )
+    p.add_argument(
+        "--adaptation",
+        choices=["oracle", "realizable"],
+        default=None,
+        help="oracle (paper, uses the true theta) or realizable (k1=k2=0); default: "
+        "the gains file's, else oracle",
+    )
+    add_max_steps(p)
+
+
+def add_force(p: Parser) -> None:
+    p.add_argument(
+        "--force",
+        action="store_true",
+        help="replace existing output files (without it an existing file is refused "
+        "before any work)",
+    )
+
+
+def add_max_steps(p: Parser) -> None:
+    p.add_argument(
+        "--max-steps",
+        type=int,
+        default=50_000,
+        help="adaptive solver step budget per run (default 50000); a run that spends "
+        "it is reported as such, not as stable",
+    )
+
+
+def add_tolerances(p: Parser) -> None:
+    p.add_argument(
+        "--rtol",
+        type=positive,
+        default=1e-6,
+        help="adaptive solver relative tolerance (default 1e-6)",
+    )
+    p.add_argument(
+        "--atol",
+        type=positive,
+        default=1e-8,
+        help="adaptive solver absolute tolerance (default 1e-8; 1e-6 takes ~1.75x "
+        "fewer AFTSC steps, delta within ~6e-6 rad: benchmarks/README.md)",
+    )
+
+
+def parse_sets(items: list[str]) -> dict[str, float]:
+    """`--set NAME=VALUE` items as a table."""
+    out = {}
+    for item in items:
+        name, sep, value = item.partition("=")
+        if not sep or not name.strip():
+            raise CLIError(f"--set {item!r} is not allowed: expected NAME=VALUE")
+        try:
+            out[name.strip()] = float(value)
+        except ValueError:
+            raise CLIError(
+                f"--set {item!r} is not allowed: VALUE must be a number"
+            ) from None
+    return out
+
+
+def build_parameters(
+    controller="aftsc",
+    preset="paper",
+    gains_file=None,
+    sets=None,
+    complete=False,
+    *,
+    gain_values=None,
+    plant_values=None,
+):
+    """(parameters, Plant, OperatingPoint, InitialEstimates) from the CLI's options:
+    the controller's defaults (the paper's `Gains` for aftsc/asc, else the controller
+    itself), then the gains file's values (or `gain_values`, already read; with
+    `complete`, all nine gains), then `--set` values; the plant `preset`, then
+    `plant_values` (a gains file's plant context), then `--set`."""
+    sets = dict(sets or {})
+    if gain_values is None:
+        gain_values = read_gains(gains_file, complete=complete) if gains_file else {}
+    groups = {"gains": {}, "plant": {}, "op": {}, "init": {}}
+    synergetic = CONTROLLERS[controller] is Synergetic
+    names = (
+        GAIN_NAMES if synergetic else tuple(CONTROLLERS[controller].parameter_kinds())
+    )
+    owners = {
+        **{n: "gains" for n in names},
+        **{n: "plant" for n in PLANT_NAMES},
+        "delta_e": "op",
+        "Pm_ref": "op",
+        "th1": "init",
+        "th2": "init",
+    }
+    for name, value in sets.items():
+        if name not in owners:
+            raise CLIError(
+                f"--set {name}: unknown name; allowed are {', '.join(owners)}"
+            )
+        groups[owners[name]][name] = value
+    values = {**gain_values, **groups["gains"]}
+    if synergetic:
+        gains = Gains.paper(controller, **values)
+    else:
+        gains = make_controller(controller, values)
+    plant = Plant.preset(preset, **{**(plant_values or {}), **groups["plant"]})
+    return (
+        gains,
+        plant,
+        OperatingPoint(**groups["op"]),
+        InitialEstimates(**groups["init"]),
+    )
+
+
+def controller_of(params, adaptation: str, context: Context | None = None):
+    """The controller that runs: `params` itself (none, avr-pss) or the paper's law
+    with `params` as gains, the adaptation and the options (projection, phi_layer)
+    of the context."""
+    if not isinstance(params, Gains):
+        return params
+    return Synergetic.from_options(
+        params, adaptation, context.options if context is not None else {}
+    )
+
+
+def gains_context(path, controller=None, adaptation=None, preset=None, complete=False):
+    """(Context, gain values) of the gains file at `path` (None: no file) under the
+    flags given (None: not given): flag, else file, else the paper's default. The
+    warnings (a flag contradicting the file) and notes (a flat file) go to stderr,
+    one line each."""
+    gf = read_gains_file(path, complete=complete) if path else None
+    ctx, values, messages = resolve(
+        gf, controller, adaptation, preset, source=f"--gains {path}"
+    )
+    for m in messages:
+        print(f"smibjax: {m}", file=sys.stderr)
+    return ctx, values
+
+
+def warn_plant_sets(ctx: Context, sets: dict) -> None:
+    """A warning for each `--set` of a plant value that contradicts the file's."""
+    for name, value in sets.items():
+        if name in ctx.plant and ctx.plant[name] != value:
+            print(
+                f"smibjax: warning: --set {name}={value:g} overrides {name} = "
+                f"{ctx.plant[name]:g} of the gains file",
+                file=sys.stderr,
+            )
+
+
+def build_from_args(args, complete=False, controller=None):
+    """`build_parameters` for a command with --gains/--controller/--preset/
+    --adaptation: the context resolved (`gains_context`) and written back into
+    `args` (controller, preset, adaptation, context), so the rest of the command
+    uses it. Returns (parameters, Plant, OperatingPoint, InitialEstimates)."""
+    sets = parse_sets(args.set)
+    ctx, values = gains_context(
+        args.gains,
+        controller if controller is not None else args.controller,
+        args.adaptation,
+        args.preset,
+        complete,
+    )
+    warn_plant_sets(ctx, sets)
+    args.preset, args.adaptation = ctx.preset, ctx.adaptation
+    args.context = ctx
+    if controller is None:
+        args.controller = ctx.controller
+    return build_parameters(
+        ctx.controller,
+        ctx.preset,
+        None,
+        sets,
+        complete,
+        gain_values=values,
+        plant_values=ctx.plant,
+    )
+
+
+def parameter_values(params) -> dict[str, float]:
+    """A parameter set's tunable values (the paper's nine gains plus c1, c2, or a
+    controller's own), as plain floats."""
+    if isinstance(params, Gains):
+        return {k: float(getattr(params, k)) for k in GAIN_NAMES}
+    return params.parameters()
+
+
+def read_dist(path) -> ScenarioDistribution:
+    """A scenario distribution from a TOML/JSON table of name = [lo, hi] (None: the
+    default distribution)."""
+    if path is None:
+        return ScenarioDistribution()
+    data = read_data(path)
+    if not isinstance(data, dict):
+        raise ParameterError(f"--dist file {str(path)!r} must hold a table")
+    return ScenarioDistribution.from_dict(data)
+
+
+def fresh_out(kind: str) -> Path:
+    """A new run folder under runs/, named by kind and time."""
+    stamp = datetime.datetime.now().strftime("%Y%m%d-%H%M%S")
+    return Path("runs") / f"{kind}-{stamp}"

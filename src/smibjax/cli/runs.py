@@ -1,0 +1,226 @@
+"""Monte Carlo run folders: chunk files, resume, CSV and markdown.
+
+`run_montecarlo` runs the missing chunks of a `MonteCarloSpec` (in this process, or
+through any `runner`, such as the Dask one in `smibjax.cli.cluster`), persists each as
+`chunks/NNNNNN.npz` the moment it finishes (atomic rename), and assembles
+`scenarios.csv`, `summary.json`, `summary.md` and the plots only when every chunk is
+there. `run.json` records the spec and whether the run is complete.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+import jax
+import numpy as np
+
+from ..montecarlo import (
+    COLUMNS,
+    INT_COLUMNS,
+    MonteCarloSpec,
+    in_process_runner,
+    summarize,
+)
+from ..parameters import ParameterError
+from .files import write_json, write_npz, write_text
+
+__all__ = ["run_montecarlo", "read_rows", "write_csv", "summary_markdown"]
+
+
+def summary_markdown(summary: dict, title: str = "Monte Carlo") -> str:
+    """summary.json as a short markdown report."""
+    s = summary
+    lo, hi = s["stable_fraction_ci95"]
+    lines = [
+        f"# {title}",
+        "",
+        f"- scenarios: {s['n']}",
+        f"- stable: {s['stable']} ({100 * s['stable_fraction']:.2f}%, 95% CI "
+        f"{100 * lo:.2f}-{100 * hi:.2f}%)",
+        f"- lost synchronism: {s['lost_sync']}",
+        f"- step budget spent before t_end (counted as not stable): "
+        f"{s.get('budget_exhausted', 0)}",
+        f"- solver steps per scenario: mean {s['num_steps']['mean']:.0f}, "
+        f"max {s['num_steps']['max']}",
+        "",
+        "Over the stable scenarios:",
+        "",
+        "| quantity | mean | p05 | p50 | p90 | p95 | p99 | max |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    for key, label in (
+        ("settling_time", "delta settling time (s, band 0.01 rad)"),
+        ("settling_Vt", "Vt settling time (s, band 0.01 pu)"),
+        ("overshoot", "first-swing overshoot (rad)"),
+    ):
+        q = s[key]
+        if q["count"] == 0:
+            lines.append(f"| {label} | - | - | - | - | - | - | - |")
+            continue
+        cols = [q[c] for c in ("mean", "p05", "p50", "p90", "p95", "p99", "max")]
+        lines.append(f"| {label} | " + " | ".join(f"{v:.3f}" for v in cols) + " |")
+    ph = s.get("physics") or {}
+    if ph:
+        lines += [
+            "",
+            "Physics, all scenarios (pu):",
+            "",
+            f"- peak commanded u_f / u_r (before limits): {ph['peak_uf_cmd_max']:.4g} "
+            f"/ {ph['peak_ur_cmd_max']:.4g}",
+            f"- mean fraction of time on a limit, u_f / u_r: "
+            f"{ph['limit_time_uf_mean']:.3f} / {ph['limit_time_ur_mean']:.3f}",
+            f"- mean total variation (chatter) of u_f / u_r: {ph['tv_uf_mean']:.4g} / "
+            f"{ph['tv_ur_mean']:.4g}",
+            f"- ranges: Vt {ph['Vt_min']:.3f}..{ph['Vt_max']:.3f}, "
+            f"B {ph['B_min']:.3f}..{ph['B_max']:.3f}, "
+            f"E' {ph['E_min']:.3f}..{ph['E_max']:.3f}",
+        ]
+    return "\n".join(lines) + "\n"
+
+
+def write_csv(path: Path, rows: dict[str, np.ndarray]) -> None:
+    """scenarios.csv: a header of `COLUMNS`, one line per scenario (inf: 'inf')."""
+    cols = [rows[c] for c in COLUMNS]
+    lines = [",".join(COLUMNS)]
+    for i in range(cols[0].size):
+        lines.append(
+            ",".join(
+                str(int(c[i])) if name in INT_COLUMNS else repr(float(c[i]))
+                for name, c in zip(COLUMNS, cols, strict=True)
+            )
+        )
+    write_text(path, "\n".join(lines) + "\n")
+
+
+def read_rows(path: str | Path) -> dict[str, np.ndarray]:
+    """scenarios.csv back as a dict of arrays."""
+    data = np.genfromtxt(path, delimiter=",", names=True, dtype=float)
+    return {
+        c: data[c].astype(int) if c in INT_COLUMNS else data[c].astype(float)
+        for c in COLUMNS
+    }
+
+
+def _chunk_path(out: Path, k: int) -> Path:
+    return out / "chunks" / f"{k:06d}.npz"
+
+
+def _chunk_ok(out: Path, spec: MonteCarloSpec, k: int) -> bool:
+    """Chunk k is on disk and whole: it loads, and holds the rows of its scenario
+    range in every column. A chunk that is not (truncated or damaged by something
+    other than this program's atomic writes) is recomputed."""
+    path = _chunk_path(out, k)
+    if not path.is_file():
+        return False
+    start, stop = spec.chunk_range(k)
+    try:
+        with np.load(path) as z:
+            cols = {c: np.asarray(z[c]) for c in z.files}
+    except Exception:  # a truncated zip raises BadZipFile, EOFError, ValueError...
+        return False
+    must = [c for c in COLUMNS if c != "budget_exhausted"]  # older chunks lack it
+    return all(
+        c in cols and cols[c].shape == (stop - start,) for c in must
+    ) and np.array_equal(cols["index"], np.arange(start, stop))
+
+
+def _check_resume(out: Path, spec: MonteCarloSpec) -> dict:
+    manifest = out / "run.json"
+    if not manifest.is_file():
+        raise ParameterError(
+            f"--resume: {str(out)!r} holds no Monte Carlo run (no run.json)"
+        )
+    saved = json.loads(manifest.read_text())
+    old = saved.get("spec", {})
+    new = spec.to_dict()
+    for key in new:
+        if old.get(key) != new[key]:
+            raise ParameterError(
+                f"--resume: {key} = {new[key]!r} differs from the run in "
+                f"{str(out)!r} ({key} = {old.get(key)!r}); repeat its options"
+            )
+    return saved
+
+
+def run_montecarlo(
+    spec: MonteCarloSpec,
+    out: str | Path,
+    *,
+    resume: bool = False,
+    runner: Callable | None = None,
+    progress: bool = True,
+    title: str = "Monte Carlo",
+    plots: bool = True,
+) -> tuple[dict[str, np.ndarray], dict]:
+    """Run (or finish, with `resume`) the Monte Carlo `spec` into folder `out`.
+
+    Returns (rows, summary). A fresh run refuses a non-empty `out`; `resume` refuses a
+    folder without `run.json` or with a different spec. Chunks already on disk are not
+    recomputed; the final files are the same as those of an uninterrupted run.
+    """
+    from tqdm.auto import tqdm
+
+    out = Path(out)
+    if resume:
+        manifest = _check_resume(out, spec)
+    else:
+        if out.exists() and (not out.is_dir() or any(out.iterdir())):
+            raise ParameterError(
+                f"--out {str(out)!r} exists and is not empty: choose a new folder or "
+                "add --resume to finish the run in it"
+            )
+        manifest = {"spec": spec.to_dict(), "complete": False}
+        write_json(out / "run.json", manifest)
+    todo = [k for k in range(spec.n_chunks) if not _chunk_ok(out, spec, k)]
+    done_rows = spec.n - sum(
+        spec.chunk_range(k)[1] - spec.chunk_range(k)[0] for k in todo
+    )
+    runner = runner or in_process_runner
+    t0, computed = time.perf_counter(), 0
+    with tqdm(
+        total=spec.n,
+        initial=int(done_rows),
+        unit="scen",
+        disable=not progress,
+        desc="monte carlo",
+        smoothing=0.1,
+    ) as bar:
+        for k, rows in runner(spec, todo):
+            write_npz(_chunk_path(out, k), rows)
+            computed += rows["index"].size
+            bar.update(rows["index"].size)
+    elapsed = time.perf_counter() - t0
+    parts = []
+    for k in range(spec.n_chunks):
+        with np.load(_chunk_path(out, k)) as z:
+            # chunks written before budget_exhausted was a column: never exhausted
+            # there was reported as lost_sync, so 0 is what they recorded.
+            parts.append(
+                {c: z[c] if c in z else np.zeros_like(z["stable"]) for c in COLUMNS}
+            )
+    rows = {c: np.concatenate([p[c] for p in parts]) for c in COLUMNS}
+    summary = summarize(rows)
+    write_csv(out / "scenarios.csv", rows)
+    write_json(out / "summary.json", summary)
+    write_text(out / "summary.md", summary_markdown(summary, title))
+    if plots:
+        from .plotting import plot_montecarlo
+
+        plot_montecarlo(rows, out / "montecarlo.png", title)
+    runs = manifest.get("sessions", [])
+    runs.append(
+        {
+            "scenarios_computed": int(computed),
+            "seconds": elapsed,
+            "scenarios_per_second": computed / elapsed if computed else None,
+            "devices": len(jax.devices()),
+        }
+    )
+    write_json(
+        out / "run.json",
+        {"spec": spec.to_dict(), "complete": True, "sessions": runs},
+    )
+    return rows, summary

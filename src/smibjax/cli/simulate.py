@@ -1,0 +1,156 @@
+"""`python -m smibjax simulate`: one closed-loop run, its summary, npz and plot."""
+
+from __future__ import annotations
+
+import json
+import math
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from ..controllers import describe
+from ..metrics import metrics
+from ..parameters import Fault
+from ..simulate import simulate
+from .files import check_new_file, write_npz
+from .options import (
+    CLIError,
+    add_common,
+    add_force,
+    add_tolerances,
+    build_from_args,
+    controller_of,
+    parameter_values,
+    positive,
+)
+from .plotting import check_plot_path, plot_trajectory, trajectory_arrays
+from .report import format_summary, metrics_dict
+
+__all__ = ["add_parser", "run"]
+
+
+def add_parser(sub) -> None:
+    s = sub.add_parser("simulate", help="one closed-loop run: summary, npz, plot")
+    add_common(s)
+    add_tolerances(s)
+    s.add_argument("--fault-time", type=float, default=0.5, help="t_fault (s)")
+    s.add_argument("--clear-time", type=float, default=0.7, help="t_clear (s)")
+    s.add_argument("--reclose-time", type=float, default=2.0, help="t_reclose (s)")
+    s.add_argument(
+        "--fault-location",
+        type=float,
+        default=0.5,
+        help="lam in (0, 1), from the SVC bus",
+    )
+    s.add_argument("--fault-reactance", type=float, default=0.0, help="Xf >= 0 (pu)")
+    s.add_argument("--t-end", type=positive, default=10.0, help="horizon (s)")
+    s.add_argument(
+        "--dt-save",
+        type=positive,
+        default=0.01,
+        help="sampling interval of the output (s), default 0.01",
+    )
+    s.add_argument("--out", metavar="FILE.npz", help="write the trajectory")
+    s.add_argument(
+        "--plot",
+        metavar="FILE.png",
+        help="plot every signal, in the format of the suffix (.png, .pdf, .svg, ...)",
+    )
+    add_force(s)
+    s.set_defaults(func=run, flags=s.flags)
+
+
+def run(args) -> int:
+    out, plot = _outputs(args)
+    gains, plant, op, init = build_from_args(args)
+    fault = Fault(
+        t_fault=args.fault_time,
+        t_clear=args.clear_time,
+        t_reclose=args.reclose_time,
+        lam=args.fault_location,
+        Xf=args.fault_reactance,
+    )
+    traj = simulate(
+        controller_of(gains, args.adaptation, args.context),
+        fault,
+        plant,
+        op=op,
+        init=init,
+        t_end=args.t_end,
+        dt_save=args.dt_save,
+        rtol=args.rtol,
+        atol=args.atol,
+        max_steps=args.max_steps,
+    )
+    _warn_dt_save(args)
+    m = metrics(traj)
+    print(format_summary(gains, fault, plant, traj, m, args))
+    arrays = trajectory_arrays(traj)
+    if args.out:
+        meta = {
+            "gains": parameter_values(gains),
+            "fault": {k: float(getattr(fault, k)) for k in fault.__dataclass_fields__},
+            "plant": {k: float(getattr(plant, k)) for k in plant.__dataclass_fields__},
+            "adaptation": args.adaptation,
+            "context": args.context.describe(),
+            "metrics": {  # NaN (not reached) as null
+                k: None if isinstance(v, float) and math.isnan(v) else v
+                for k, v in metrics_dict(m).items()
+            },
+        }
+        arrays["meta"] = np.array(json.dumps(meta, allow_nan=True))
+        write_npz(out, arrays)
+        print(f"wrote {out}")
+    if plot:
+        plot_trajectory(
+            arrays,
+            plot,
+            _title(gains, fault, args),
+            (-float(plant.D), float(plant.Pm)),
+        )
+        print(f"wrote {plot}")
+    return 0
+
+
+def _outputs(args) -> tuple[Path | None, Path | None]:
+    """--out (.npz appended when missing) and --plot paths, refused before the run
+    when they exist (without --force), name a folder, the same file, or (for --plot)
+    a format that cannot be written."""
+    out = plot = None
+    if args.out:
+        out = Path(args.out)
+        if out.suffix != ".npz":
+            out = out.with_name(out.name + ".npz")
+        out = check_new_file(out, args.force, "--out")
+    if args.plot:
+        plot = check_new_file(check_plot_path(args.plot), args.force, "--plot")
+        if out is not None and plot.resolve() == out.resolve():
+            raise CLIError(
+                f"--plot = {str(plot)!r} is not allowed: must differ from --out"
+            )
+    return out, plot
+
+
+def _warn_dt_save(args) -> None:
+    """Say so when --dt-save does not divide --t-end: the run samples the nearest
+    number of equal intervals instead (printed after the run succeeded, so that a
+    refusal stays one line)."""
+    ratio = args.t_end / args.dt_save
+    if abs(ratio - round(ratio)) > 1e-9 * max(1.0, ratio):
+        n = max(int(round(ratio)), 1)
+        print(
+            f"smibjax: warning: --dt-save {args.dt_save:g} does not divide --t-end "
+            f"{args.t_end:g}: sampling {n} equal intervals of "
+            f"{args.t_end / n:.6g} s instead",
+            file=sys.stderr,
+        )
+
+
+def _title(gains, fault, args) -> str:
+    return (
+        f"{describe(gains)}; fault {float(fault.t_fault):g} -> "
+        f"{float(fault.t_clear):g} s, reclose {float(fault.t_reclose):g} s, "
+        f"lam {float(fault.lam):g}, Xf {float(fault.Xf):g}; {args.preset} plant, "
+        f"{args.adaptation} adaptation"
+    )
