@@ -46,14 +46,15 @@ def test_operating_point_is_an_open_loop_equilibrium_with_its_field_voltage():
 def test_input_limits_hard_and_soft():
     import jax
 
-    from smibjax.plant import GRADIENT_LEAK, apply_limits
+    from smibjax.plant import apply_limits
 
     real, paper = sj.Plant.preset("realistic"), sj.Plant()
     uf, ur = apply_limits(7.0, -3.0, real)
     assert (float(uf), float(ur)) == (5.0, -1.0)
     assert float(apply_limits(1e6, -1e6, paper)[0]) == 1e6  # no limits
     # soft: within w exp(-distance / w) of the hard clip, true slope inside the
-    # limits, a leaked slope beyond them, exact identity without limits
+    # limits, the soft clip's own slope beyond them (w e^(-d/w) d/du: 1/(1 + e^(d/w))
+    # at a distance d), exact identity without limits
     w = 0.05
     for u, hard in ((0.3, 0.3), (4.5, 4.5), (9.0, 5.0), (-9.0, -5.0)):
         soft = float(apply_limits(u, 0.0, real, w)[0])
@@ -62,5 +63,5 @@ def test_input_limits_hard_and_soft():
         )
     slope = jax.grad(lambda v: apply_limits(v, 0.0, real, w)[0])
     assert float(slope(0.0)) == pytest.approx(1.0)
-    assert float(slope(9.0)) == pytest.approx(GRADIENT_LEAK, abs=1e-12)
+    assert float(slope(9.0)) == pytest.approx(1 / (1 + np.exp(4.0 / w)), rel=1e-6)
     assert float(jax.grad(lambda v: apply_limits(v, 0.0, paper, w)[0])(3.0)) == 1.0

@@ -456,10 +456,19 @@ def finish(cfg: dict, out: Path, state: dict) -> None:
     """gains.json, history.csv, report.md and plots."""
     from .report import write_report
 
-    names = tuple(state["space"].kinds)
-    gains = state["space"].to_gains(state["best"]["raw"])
+    problem = build(cfg)
+    space = problem.space
+    names = tuple(space.kinds)
+    gains = space.to_gains(state["best"]["raw"])
     write_gains_file(out / "gains.json", _gains_file(cfg, gains, names))
-    last = state["space"].to_gains(state["raw"])
+    last = space.to_gains(state["raw"])
     write_gains_file(out / "gains_last.json", _gains_file(cfg, last, names))
     write_history(out, state["history"])
-    write_report(cfg, out, state)
+    write_report(
+        cfg,
+        out,
+        state,
+        problem,
+        make_validation(cfg, problem),
+        validation_scenarios(cfg, problem),
+    )

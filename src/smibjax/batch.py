@@ -37,7 +37,7 @@ from .closed_loop import as_controller
 from .controllers import AbstractController
 from .metrics import DEFAULT_BANDS, Metrics, metrics
 from .parallel import device_map
-from .parameters import Fault, InitialEstimates, OperatingPoint, Plant
+from .parameters import Fault, Gains, InitialEstimates, OperatingPoint, Plant
 from .simulate import simulate
 
 __all__ = ["Engine", "Outcome", "Scenarios"]
@@ -141,12 +141,12 @@ class Engine:
         leading axis as long as the batch): scenario i runs the controller with the
         values of lane i. `devices`: JAX devices to split the batch over (default:
         all). Returns an `Outcome` (leading axis: the scenario)."""
-        template = as_controller(controller, True)
-        if not isinstance(template, AbstractController):
+        if not isinstance(controller, (AbstractController, Gains)):
             raise ParameterError(
                 f"controller = {controller!r} is not allowed: must be a controller "
                 "(smibjax.controllers) or Gains"
             )
+        template = as_controller(controller, True)
         values = template.tunable() if lanes is None else lanes
         alpha_one = _all_alpha_one(template, values)
         key = (

@@ -25,6 +25,7 @@ __all__ = [
     "saturation",
     "LossWeights",
     "TERM_NAMES",
+    "TERMS",
     "loss_terms",
     "scenario_loss",
     "cvar",
@@ -152,45 +153,35 @@ class LossWeights(eqx.Module):
     Vt_band: float = eqx.field(static=True, default=0.01)
 
 
-TERM_NAMES = (
-    "settling_delta",
-    "settling_Vt",
-    "overshoot",
-    "effort",
-    "divergence",
-    "margin",
-    "instability",
-    "chatter",
-    "saturation",
-)
+def _settling_delta(traj: Trajectory, w: LossWeights) -> Scalar:
+    return soft_settling_time(
+        traj.t, traj.delta, traj.delta_e, w.delta_band, traj.t_fault
+    )
+
+
+def _settling_Vt(traj: Trajectory, w: LossWeights) -> Scalar:
+    return soft_settling_time(traj.t, traj.Vt, traj.Vt_e, w.Vt_band, traj.t_fault)
+
+
+# The named loss terms, each once: name -> the unweighted term of one scenario (s, s,
+# rad, -, -, -, -, 1/s, -). Its weight is the `LossWeights` field of the same name.
+TERMS = {
+    "settling_delta": _settling_delta,
+    "settling_Vt": _settling_Vt,
+    "overshoot": lambda traj, w: soft_overshoot(traj),
+    "effort": lambda traj, w: effort_rate(traj),
+    "divergence": lambda traj, w: divergence(traj),
+    "margin": lambda traj, w: margin(traj),
+    "instability": lambda traj, w: instability(traj),
+    "chatter": lambda traj, w: chatter(traj),
+    "saturation": lambda traj, w: saturation(traj),
+}
+TERM_NAMES = tuple(TERMS)
 
 
 def loss_terms(traj: Trajectory, w: LossWeights) -> dict[str, Scalar]:
-    """The unweighted terms of one scenario (s, s, rad, -, -, -, -, 1/s, -), named as in
-    `TERM_NAMES` and `LossWeights`."""
-    return {
-        "settling_delta": soft_settling_time(
-            traj.t,
-            traj.delta,
-            traj.delta_e,
-            w.delta_band,
-            traj.t_fault,
-        ),
-        "settling_Vt": soft_settling_time(
-            traj.t,
-            traj.Vt,
-            traj.Vt_e,
-            w.Vt_band,
-            traj.t_fault,
-        ),
-        "overshoot": soft_overshoot(traj),
-        "effort": effort_rate(traj),
-        "divergence": divergence(traj),
-        "margin": margin(traj),
-        "instability": instability(traj),
-        "chatter": chatter(traj),
-        "saturation": saturation(traj),
-    }
+    """The unweighted terms of one scenario, named as in `TERMS`."""
+    return {name: term(traj, w) for name, term in TERMS.items()}
 
 
 def scenario_loss(traj: Trajectory, w: LossWeights) -> Scalar:

@@ -61,35 +61,17 @@ def _soft_clip(u: Scalar, lo: Scalar, hi: Scalar, width: float) -> Scalar:
     return jnp.where(fin_hi, hi0 - width * jax.nn.softplus((hi0 - y) / width), y)
 
 
-GRADIENT_LEAK = 0.0  # 0.05 was tried: under the realistic limits it made the
-# reverse pass overflow (inf gradients in every scenario), so it is off by default
-
-
-def _leaky_soft_clip(u: Scalar, lo: Scalar, hi: Scalar, width: float) -> Scalar:
-    """The soft clip in the forward pass; in the backward pass its slope s plus
-    GRADIENT_LEAK * (1 - s): a straight-through leak, so that beyond a limit the
-    saturated input still tells the loss which way the command pushes (instead of a
-    gradient of zero), while inside the limits the gradient is the true one."""
-    if GRADIENT_LEAK == 0:
-        return _soft_clip(u, lo, hi, width)
-    y, slope = jax.jvp(
-        lambda v: _soft_clip(v, lo, hi, width), (u,), (jnp.ones_like(u),)
-    )
-    leak = GRADIENT_LEAK * (1 - jax.lax.stop_gradient(slope))
-    return y + leak * (u - jax.lax.stop_gradient(u))
-
-
 def apply_limits(
     u_f: Scalar, u_r: Scalar, plant: Plant, smoothing: float = 0.0
 ) -> tuple[Scalar, Scalar]:
     """Limit the inputs to [uf_min, uf_max] and [ur_min, ur_max]: a hard clip
     (`smoothing = 0`, the physical limiter, used for reports) or, for training losses,
-    a soft clip of width `smoothing` (pu) whose gradient leaks `GRADIENT_LEAK` beyond
-    the limits (a surrogate gradient: the forward value is the soft clip's)."""
+    a soft clip of width `smoothing` (pu), whose gradient beyond the limits is small
+    but not zero."""
     if smoothing > 0:
         return (
-            _leaky_soft_clip(u_f, plant.uf_min, plant.uf_max, smoothing),
-            _leaky_soft_clip(u_r, plant.ur_min, plant.ur_max, smoothing),
+            _soft_clip(u_f, plant.uf_min, plant.uf_max, smoothing),
+            _soft_clip(u_r, plant.ur_min, plant.ur_max, smoothing),
         )
     return (
         jnp.clip(u_f, plant.uf_min, plant.uf_max),
