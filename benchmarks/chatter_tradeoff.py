@@ -13,6 +13,11 @@ benchmarks/results/chatter_tradeoff.json and docs/figures/chatter_tradeoff.png.
 
 from __future__ import annotations
 
+from smibjax.cli.process import configure_process
+
+# an entry point: float64, equinox's checks as NaNs, before JAX loads
+configure_process(cache=False)
+
 import argparse
 import json
 import subprocess

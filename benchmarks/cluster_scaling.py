@@ -24,20 +24,22 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from smibjax.cli.process import use_host_devices  # noqa: E402
+from smibjax.cli.process import configure_process
 
-use_host_devices()  # one host device per core, before JAX starts its CPU backend
+configure_process(
+    cache=False
+)  # one host device per core, before JAX starts its CPU backend
 
-import jax  # noqa: E402
-import matplotlib  # noqa: E402
-import numpy as np  # noqa: E402
+import jax
+import matplotlib
+import numpy as np
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-from _results import write_results  # noqa: E402
+import matplotlib.pyplot as plt
+from _results import write_results
 
-import smibjax as sj  # noqa: E402
-from smibjax.montecarlo import COLUMNS, MonteCarloSpec, compute_chunk  # noqa: E402
+import smibjax as sj
+from smibjax.montecarlo import COLUMNS, MonteCarloSpec, compute_chunk
 
 
 def _noop(x):

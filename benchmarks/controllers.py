@@ -21,18 +21,18 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from smibjax.cli.process import enable_compilation_cache, use_host_devices  # noqa: E402
+from smibjax.cli.process import configure_process, enable_compilation_cache
 
-use_host_devices()
+configure_process(cache=False)
 
-import numpy as np  # noqa: E402
+import numpy as np
 
-import smibjax as sj  # noqa: E402
-from smibjax.cct import critical_clearing_times  # noqa: E402
-from smibjax.cli.files import read_gains_file  # noqa: E402
-from smibjax.controllers import Synergetic, make_controller  # noqa: E402
-from smibjax.montecarlo import MonteCarloSpec, compute_chunk, summarize  # noqa: E402
-from smibjax.scenarios import ScenarioDistribution  # noqa: E402
+import smibjax as sj
+from smibjax.cct import critical_clearing_times
+from smibjax.cli.files import read_gains_file
+from smibjax.controllers import Synergetic, make_controller
+from smibjax.montecarlo import MonteCarloSpec, compute_chunk, summarize
+from smibjax.scenarios import ScenarioDistribution
 
 LOCATIONS = (0.1, 0.3, 0.5, 0.7, 0.9)
 

@@ -25,35 +25,36 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from smibjax.cli.process import use_host_devices  # noqa: E402
+from smibjax.cli.process import configure_process
 
-# One host device per core (at least two), before JAX starts its CPU backend.
-use_host_devices(minimum=2)
+# As an entry point: one host device per core (at least two), float64, equinox's
+# checks as NaNs, before JAX loads (the cache: _common.enable_cache).
+configure_process(min_devices=2, cache=False)
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 sys.path.insert(0, str(HERE.parent))  # the tuning package
 
-import argparse  # noqa: E402
-import ctypes  # noqa: E402
-import gc  # noqa: E402
-import json  # noqa: E402
-import re  # noqa: E402
-import resource  # noqa: E402
-import subprocess  # noqa: E402
+import argparse
+import ctypes
+import gc
+import json
+import re
+import resource
+import subprocess
 
-import jax  # noqa: E402
-import jax.numpy as jnp  # noqa: E402
-import matplotlib  # noqa: E402
-import numpy as np  # noqa: E402
+import jax
+import jax.numpy as jnp
+import matplotlib
+import numpy as np
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-from _common import DEFAULT_OUT, enable_cache, status, timed  # noqa: E402
-from _results import write_results  # noqa: E402
+import matplotlib.pyplot as plt
+from _common import DEFAULT_OUT, enable_cache, status, timed
+from _results import write_results
 
-from tuning.config import load_config  # noqa: E402
-from tuning.driver import build  # noqa: E402
-from tuning.train import draw_scenarios, make_loss, make_train_step  # noqa: E402
+from tuning.config import load_config
+from tuning.driver import build
+from tuning.train import draw_scenarios, make_loss, make_train_step
 
 TARGET_RATIO, TARGET_MEMORY_MB = 5.0, 1000.0
 CHILD_TAG = "GRADIENTS_CHILD "

@@ -11,23 +11,25 @@ Target (issue 5): 100,000 scenarios at >= 300 scenarios/s on a 2-core machine.
 
 from __future__ import annotations
 
-from smibjax.cli.process import use_host_devices  # noqa: E402
+from smibjax.cli.process import configure_process
 
-use_host_devices()  # as `python -m smibjax` does, before JAX starts its CPU backend
+configure_process(
+    cache=False
+)  # as `python -m smibjax` does, before JAX starts its CPU backend
 
-import argparse  # noqa: E402
-import shutil  # noqa: E402
-import tempfile  # noqa: E402
-import time  # noqa: E402
-from pathlib import Path  # noqa: E402
+import argparse
+import shutil
+import tempfile
+import time
+from pathlib import Path
 
-import jax  # noqa: E402
-from _common import add_tolerance_args, result_name  # noqa: E402
-from _results import write_results  # noqa: E402
+import jax
+from _common import add_tolerance_args, result_name
+from _results import write_results
 
-import smibjax as sj  # noqa: E402
-from smibjax.cli.runs import run_montecarlo  # noqa: E402
-from smibjax.montecarlo import MonteCarloSpec, compute_chunk  # noqa: E402
+import smibjax as sj
+from smibjax.cli.runs import run_montecarlo
+from smibjax.montecarlo import MonteCarloSpec, compute_chunk
 
 TARGET = 300.0  # scenarios / s
 

@@ -21,6 +21,11 @@ Writes `saturation_gradients.json` and `.png` under benchmarks/results/.
 
 from __future__ import annotations
 
+from smibjax.cli.process import configure_process
+
+# an entry point: float64, equinox's checks as NaNs, before JAX loads
+configure_process(cache=False)
+
 import argparse
 import sys
 import time
@@ -29,16 +34,16 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-import jax  # noqa: E402
-import jax.numpy as jnp  # noqa: E402
-import numpy as np  # noqa: E402
-from benchmarks._results import write_results  # noqa: E402
+import jax
+import jax.numpy as jnp
+import numpy as np
+from benchmarks._results import write_results
 
-import smibjax as sj  # noqa: E402
-from smibjax.cli.process import enable_compilation_cache  # noqa: E402
-from smibjax.controllers import EstimateBox, Synergetic  # noqa: E402
-from smibjax.losses import LossWeights, scenario_loss  # noqa: E402
-from tuning.params import GainSpace  # noqa: E402
+import smibjax as sj
+from smibjax.cli.process import enable_compilation_cache
+from smibjax.controllers import EstimateBox, Synergetic
+from smibjax.losses import LossWeights, scenario_loss
+from tuning.params import GainSpace
 
 PLANT = sj.Plant.preset("realistic")
 BOX = EstimateBox(jnp.array([-1.0, 0.0]), jnp.array([0.0, 2.0]))

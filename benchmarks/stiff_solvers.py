@@ -24,16 +24,16 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 sys.path.insert(0, str(HERE.parent / "tests"))  # reference.py, the SciPy model
 
-import matplotlib  # noqa: E402
-import numpy as np  # noqa: E402
-from scipy.integrate import solve_ivp  # noqa: E402
+import matplotlib
+import numpy as np
+from scipy.integrate import solve_ivp
 
-import reference  # noqa: E402
+import reference
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-from _common import DEFAULT_OUT  # noqa: E402
-from _results import write_results  # noqa: E402
+import matplotlib.pyplot as plt
+from _common import DEFAULT_OUT
+from _results import write_results
 
 RTOL, ATOL = 1e-6, 1e-8
 ALPHAS = {"aftsc": 5 / 7, "asc": 1.0}

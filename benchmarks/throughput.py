@@ -20,21 +20,22 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from smibjax.cli.process import use_host_devices  # noqa: E402
+from smibjax.cli.process import configure_process
 
-# One host device per core (at least two), before JAX starts its CPU backend.
-use_host_devices(minimum=2)
+# As an entry point: one host device per core (at least two), float64, equinox's
+# checks as NaNs, before JAX loads (the cache: _common.enable_cache).
+configure_process(min_devices=2, cache=False)
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-import argparse  # noqa: E402
+import argparse
 
-import jax  # noqa: E402
-import matplotlib  # noqa: E402
-import numpy as np  # noqa: E402
+import jax
+import matplotlib
+import numpy as np
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-from _common import (  # noqa: E402
+import matplotlib.pyplot as plt
+from _common import (
     ALPHA,
     CONTROLLERS,
     DEFAULT_OUT,
@@ -50,7 +51,7 @@ from _common import (  # noqa: E402
     take,
     timed,
 )
-from _results import write_results  # noqa: E402
+from _results import write_results
 
 TARGET = {"aftsc": 600.0, "asc": 1800.0}  # scenarios/s, batch >= 1024, 2+ devices
 TARGET_BATCH, TARGET_DEVICES, TARGET_DELTA = 1024, 2, 1e-5

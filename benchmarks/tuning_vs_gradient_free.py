@@ -26,23 +26,25 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from smibjax.cli.process import enable_compilation_cache, use_host_devices  # noqa: E402
+from smibjax.cli.process import configure_process, enable_compilation_cache
 
-use_host_devices()  # one host device per core, before JAX starts its CPU backend
+configure_process(
+    cache=False
+)  # one host device per core, before JAX starts its CPU backend
 
-import jax  # noqa: E402
-import matplotlib  # noqa: E402
-import numpy as np  # noqa: E402
-from scipy.optimize import minimize  # noqa: E402
+import jax
+import matplotlib
+import numpy as np
+from scipy.optimize import minimize
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-from _results import write_results  # noqa: E402
+import matplotlib.pyplot as plt
+from _results import write_results
 
-from tuning.config import load_config  # noqa: E402
-from tuning.driver import build, run  # noqa: E402
-from tuning.search import cross_entropy_search, make_population_score  # noqa: E402
-from tuning.train import draw_scenarios, make_validate, summarize  # noqa: E402
+from tuning.config import load_config
+from tuning.driver import build, run
+from tuning.search import cross_entropy_search, make_population_score
+from tuning.train import draw_scenarios, make_validate, summarize
 
 
 def main(argv=None) -> int:

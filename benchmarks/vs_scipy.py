@@ -23,28 +23,29 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from smibjax.cli.process import use_host_devices  # noqa: E402
+from smibjax.cli.process import configure_process
 
-# One host device per core (at least two), before JAX starts its CPU backend.
-use_host_devices(minimum=2)
+# As an entry point: one host device per core (at least two), float64, equinox's
+# checks as NaNs, before JAX loads (the cache: _common.enable_cache).
+configure_process(min_devices=2, cache=False)
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 sys.path.insert(0, str(HERE.parent / "tests"))  # reference.py, the SciPy model
 
-import argparse  # noqa: E402
-import math  # noqa: E402
-import time  # noqa: E402
+import argparse
+import math
+import time
 
-import jax  # noqa: E402
-import matplotlib  # noqa: E402
-import numpy as np  # noqa: E402
-from scipy.integrate import solve_ivp  # noqa: E402
+import jax
+import matplotlib
+import numpy as np
+from scipy.integrate import solve_ivp
 
-import reference  # noqa: E402
+import reference
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-from _common import (  # noqa: E402
+import matplotlib.pyplot as plt
+from _common import (
     ALPHA,
     CONTROLLERS,
     DEFAULT_OUT,
@@ -63,10 +64,10 @@ from _common import (  # noqa: E402
     take,
     timed,
 )
-from _results import write_results  # noqa: E402
+from _results import write_results
 
-import smibjax as sj  # noqa: E402
-from smibjax.closed_loop import DELTA_MARGIN  # noqa: E402
+import smibjax as sj
+from smibjax.closed_loop import DELTA_MARGIN
 
 TARGET_RATIO = {"aftsc": 300.0, "asc": 150.0}
 

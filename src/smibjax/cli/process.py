@@ -51,7 +51,11 @@ def enable_compilation_cache(path: str | None = None) -> str | None:
 
 
 def configure_process(
-    *, host_devices: bool = True, cache: bool = True, cache_dir: str | None = None
+    *,
+    host_devices: bool = True,
+    min_devices: int = 1,
+    cache: bool = True,
+    cache_dir: str | None = None,
 ) -> None:
     """Set up this process for smibjax's entry points:
 
@@ -63,8 +67,8 @@ def configure_process(
       as NaN-on-failure checks they compile without callbacks, so the cache can store
       the simulator (first call in a new process: seconds instead of tens of
       seconds).
-    - one XLA host device per core (`host_devices`; `use_host_devices`), before JAX
-      starts its CPU backend;
+    - one XLA host device per core, at least `min_devices` (`host_devices`;
+      `use_host_devices`), before JAX starts its CPU backend;
     - JAX's 64-bit mode (the closed loop is stiff and the finite-time law works near
       phi = 0, where float32 is not enough);
     - the persistent compilation cache (`cache`; `enable_compilation_cache`).
@@ -72,7 +76,7 @@ def configure_process(
     if "equinox" not in sys.modules:
         os.environ.setdefault("EQX_ON_ERROR", "nan")
     if host_devices:
-        use_host_devices()
+        use_host_devices(min_devices)
     import jax
 
     jax.config.update("jax_enable_x64", True)
