@@ -43,9 +43,9 @@ def test_shard_batch_matches_device_map_and_one_device():
     # two, as the command-line tools and the tuner use them.
     here = Path(__file__).resolve().parent
     code = (
+        "from smibjax.cli.process import configure_process\n"
+        f"configure_process(cache_dir={str(here.parent / '.jax_cache')!r})\n"
         "import jax\n"
-        f"jax.config.update('jax_compilation_cache_dir', {str(here.parent / '.jax_cache')!r})\n"
-        "jax.config.update('jax_persistent_cache_min_compile_time_secs', 0.5)\n"
         "assert len(jax.devices()) == 2, jax.devices()\n"
         "import test_parallel\n"
         "test_parallel.check_two_devices()\n"

@@ -394,3 +394,21 @@ def test_search_warm_start_end_to_end(tmp_path):
 
     finish(cfg, tmp_path, state)
     assert "Gradient-free warm start" in (tmp_path / "report.md").read_text()
+
+
+def test_model_selection_is_most_stable_then_fastest():
+    """The kept gains (gains.json) are the validation's best: the larger stable
+    fraction first, then the shorter mean settling; a summary whose settling is
+    not a number (nothing stable) never wins a tie."""
+    from tuning.driver import _better
+
+    def v(stable, ts):
+        return {"stable_fraction": stable, "settling_delta_mean": ts}
+
+    assert _better(v(1.0, 4.0), v(0.99, 1.0))  # stability first
+    assert not _better(v(0.99, 1.0), v(1.0, 4.0))
+    assert _better(v(1.0, 2.0), v(1.0, 2.5))  # then speed
+    assert not _better(v(1.0, 2.5), v(1.0, 2.0))
+    assert not _better(v(1.0, 2.0), v(1.0, 2.0))  # a tie keeps the earlier
+    assert _better(v(0.0, 5.0), v(0.0, float("nan")))
+    assert not _better(v(0.0, float("nan")), v(0.0, 5.0))
