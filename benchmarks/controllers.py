@@ -31,6 +31,7 @@ from smibjax.parallel import use_host_devices  # noqa: E402
 use_host_devices()
 
 import numpy as np  # noqa: E402
+from _results import write_results  # noqa: E402
 
 import smibjax as sj  # noqa: E402
 from smibjax import gainsfile  # noqa: E402
@@ -239,7 +240,9 @@ def main(argv=None) -> int:
         for k, v in results.items()
     }
     payload = {"n": args.n, "locations": list(LOCATIONS), "sets": payload}
-    (out / "controllers.json").write_text(json.dumps(payload, indent=1, default=str))
+    payload = json.loads(json.dumps(payload, default=str))
+    config = {"n": args.n, "chunk": args.chunk, "gains": args.gains, "limits": limits}
+    write_results(out, "controllers", config, payload)
     (out / "controllers.md").write_text(table_markdown(payload) + "\n")
     print(table_markdown(payload))
     import matplotlib
