@@ -81,16 +81,20 @@ class AvrPss(AbstractController):
     Internal state: (exciter output u_f, washout state, lead-lag 1, lead-lag 2,
     SVC regulator output u_r). Diagnostics: (PSS output v_s, Vt - Vt_ref) in pu.
 
-    Commanded inputs: the exciter and the SVC regulator are non-windup lags, so
-    their states never leave the limits and would always equal the applied inputs
-    (time on a limit and peak command would read as if the limiter never acted).
-    While a limiter holds its lag (state at the limit, the input pushing outwards)
-    the commanded u_f is the regulator's demand K_A (Vt_ref - Vt + v_s) (the lag's
-    input: the field voltage the exciter would settle to without a ceiling), and
-    the commanded u_r is K_svc (Vt_ref - Vt); otherwise the lag's state. The plant
-    clips the command to the same limits, so under the hard limits the applied
-    inputs are unchanged; under the soft limiter of training the applied input
-    then approaches the limit instead of sitting a softplus width inside it.
+    Commanded inputs: the exciter and the SVC regulator are non-windup lags whose
+    states stay at the limits (or past them by the solver's overshoot, up to 0.09
+    pu), so as commands they would equal the applied inputs up to that overshoot:
+    the peak command read as the ceiling (5.09 pu over 256 validation scenarios,
+    where the exciter asks for 173 pu), and the time on a limit was right only
+    because the overshoot exceeded `metrics.on_limit`'s 1e-9 pu (a state held
+    exactly at the limit read as never on it). While a limiter holds its lag (state
+    at the limit, the input pushing outwards) the commanded u_f is the regulator's
+    demand K_A (Vt_ref - Vt + v_s) (the lag's input: the field voltage the exciter
+    would settle to without a ceiling), and the commanded u_r is K_svc (Vt_ref -
+    Vt); otherwise the lag's state. The plant clips the command to the same limits,
+    so under the hard limits the applied inputs are unchanged; under the soft
+    limiter of training the applied input then approaches the limit instead of
+    sitting a softplus width inside it.
     """
 
     K_A: Scalar = _field(200.0)  # exciter gain (pu/pu)
