@@ -104,6 +104,60 @@ def test_conventional_baseline_keeps_synchronism_on_the_paper_fault():
     assert 0.01 < np.max(np.abs(v_s)) <= 0.2 + 1e-12
 
 
+class _StateAsCommand(AvrPss):
+    """The AVR + PSS as it reported before issue 14's fix: the non-windup lags'
+    states as the commanded inputs (never beyond the limits)."""
+
+    def __call__(self, t, z, s, stage, plant, op):
+        out = super().__call__(t, z, s, stage, plant, op)
+        return out._replace(u_f=s[0], u_r=s[4])
+
+
+def test_avr_pss_commands_its_demand_while_the_limiter_holds_it():
+    """At the field ceiling with the voltage low (fault on), the exciter's lag is
+    held and the command is the regulator's demand K_A (Vt_ref - Vt + v_s) beyond
+    the ceiling, so the limiter shows in the time on a limit; inside the limits the
+    command is the lag's state."""
+    from smibjax.network import stage_at
+    from smibjax.plant import apply_limits
+
+    ctrl, plant, op = AvrPss(), REALISTIC, sj.OperatingPoint()
+    fault = sj.Fault()
+    z0 = initial_state(op, plant, sj.InitialEstimates(), ctrl)[:4]
+    stage = stage_at(jnp.asarray(0.6), fault, plant)  # fault on: Vt well below ref
+    s = jnp.zeros(ctrl.n_internal).at[0].set(plant.uf_max).at[4].set(plant.ur_max)
+    out = ctrl(0.6, z0, s, stage, plant, op)
+    assert float(out.d_internal[0]) == 0.0 and float(out.d_internal[4]) == 0.0
+    assert float(out.u_f) > 10 * float(plant.uf_max)  # K_A = 200 on a large error
+    assert float(out.u_r) > float(plant.ur_max)
+    u_f, u_r = apply_limits(out.u_f, out.u_r, plant)  # the plant applies the limits
+    assert float(u_f) == float(plant.uf_max) and float(u_r) == float(plant.ur_max)
+    old = _StateAsCommand()(0.6, z0, s, stage, plant, op)
+    assert float(old.u_f) == float(plant.uf_max)  # before the fix: never on a limit
+    inside = s.at[0].set(2.0).at[4].set(0.1)
+    out = ctrl(0.6, z0, inside, stage, plant, op)
+    assert float(out.u_f) == 2.0 and float(out.u_r) == 0.1
+
+
+def test_avr_pss_limit_metrics_see_the_ceiling_on_the_paper_fault():
+    """The fix changes what is reported, not what is applied: the same trajectory
+    as the lag states as commands, while the peak command is the exciter's demand
+    (about 100 pu, not the 5 pu ceiling) and the time on a limit is at least the
+    time the applied field voltage sits at its ceiling."""
+    from smibjax.metrics import metrics
+
+    new = sj.simulate(AvrPss(), sj.Fault(), REALISTIC)
+    old = sj.simulate(_StateAsCommand(), sj.Fault(), REALISTIC)
+    np.testing.assert_allclose(np.asarray(new.delta), np.asarray(old.delta), atol=1e-8)
+    np.testing.assert_allclose(np.asarray(new.u_f), np.asarray(old.u_f), atol=1e-6)
+    m, m_old = metrics(new), metrics(old)
+    assert float(m.peak_uf_cmd) > 50.0 and float(m_old.peak_uf_cmd) < 5.01
+    assert float(m.peak_ur_cmd) > 2.0 and float(m_old.peak_ur_cmd) < 1.01
+    at_ceiling = np.mean(np.abs(np.asarray(new.u_f)) >= float(REALISTIC.uf_max) - 1e-9)
+    assert at_ceiling > 0.01
+    assert float(m.limit_time_uf) >= at_ceiling
+
+
 def test_angle_range_is_the_controllers():
     assert Synergetic(sj.Gains()).angle_range == (0.0, np.pi)
     assert NoControl().angle_range == (-np.pi, np.pi)

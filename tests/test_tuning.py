@@ -287,6 +287,31 @@ def test_end_to_end_run_writes_outputs_usable_by_simulate(tmp_path, capsys):
     )
 
 
+def test_avr_pss_tunes_its_own_parameters(tmp_path):
+    """The conventional baseline trains its own fields (tuning/configs/avr_pss.toml's
+    bounds), writes them as its gains file, and its report names none of the paper's
+    law's options (adaptation, boundary layer, estimates)."""
+    from conftest import ROOT
+    from smibjax.controllers import AvrPss
+
+    cfgfile = tmp_path / "tiny.toml"
+    base = (ROOT / "tuning" / "configs" / "avr_pss.toml").read_text()
+    cfgfile.write_text(
+        base.replace('controller = "avr-pss"', 'controller = "avr-pss"\nsteps = 1')
+        + "\n[validation]\nn = 2\nevery = 1\nt_end = 4.0\n"
+    )
+    out = tmp_path / "run"
+    assert main(["--config", str(cfgfile), "--out", str(out), "--quiet"]) == 0
+    gains = json.loads((out / "gains.json").read_text())
+    assert gains["controller"] == "avr-pss" and gains["options"] == {}
+    assert sorted(gains["gains"]) == sorted(AvrPss.parameter_kinds())
+    assert gains["gains"]["K_A"] != 200.0  # trained (one step from the textbook)
+    report = (out / "report.md").read_text()
+    assert "Controller AVR-PSS, realistic plant;" in report
+    assert "adaptation" not in report.split("\n")[2]
+    assert "final estimates" not in report and "boundary layer" not in report
+
+
 def test_kill_9_then_resume_matches_an_uninterrupted_run(tmp_path):
     """A real SIGKILL mid-run, then `--resume`: same gains and history as a run that
     was never interrupted; the files written before the kill are kept."""

@@ -164,12 +164,15 @@ def _paper_fault_lines(tr, setup) -> list[str]:
             f"{float(m.B_min):.3f}..{float(m.B_max):.3f}, "
             f"{float(m.E_min):.3f}..{float(m.E_max):.3f}",
         ),
-        (
-            "final estimates (th1, th2) vs true (-D, Pm)",
-            f"({th[0]:.4f}, {th[1]:.4f}) vs ({-float(setup.plant.D):g}, "
-            f"{float(setup.plant.Pm):g})",
-        ),
     ]
+    if setup.controller in ("aftsc", "asc"):  # the paper's law has estimates
+        rows.append(
+            (
+                "final estimates (th1, th2) vs true (-D, Pm)",
+                f"({th[0]:.4f}, {th[1]:.4f}) vs ({-float(setup.plant.D):g}, "
+                f"{float(setup.plant.Pm):g})",
+            )
+        )
     return [
         "## The tuned controller on the paper's fault",
         "",
@@ -252,11 +255,12 @@ def write_report(
         return _fmt(v[k]) if not k2 else f"{_fmt(v[k])} .. {_fmt(v[k2])}"
 
     n_val = int(cfg["validation"]["n"])
+    synergetic = isinstance(g0, sj.Gains)  # the paper's law (adaptation, options)
     md = [
         "# Tuning report",
         "",
-        f"Controller {cfg['controller'].upper()}, {cfg['preset']} plant, "
-        f"{cfg['adaptation']} adaptation"
+        f"Controller {cfg['controller'].upper()}, {cfg['preset']} plant"
+        + (f", {cfg['adaptation']} adaptation" if synergetic else "")
         + (
             f", estimates projected onto {cfg['options']['projection']}"
             if setup.projection is not None
@@ -264,7 +268,7 @@ def write_report(
         )
         + (
             f", evolution-law boundary layer {setup.phi_layer:g}"
-            if setup.phi_layer
+            if setup.phi_layer and synergetic
             else ""
         )
         + f"; true damping D {_d_range(cfg)}; {state['step']} steps of batch "

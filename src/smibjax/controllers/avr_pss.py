@@ -56,10 +56,23 @@ _KINDS = {
 }
 
 
+def _pinned(x, dx, lo, hi):
+    """A lag's state held at a limit: at (or past) it and pushed outwards."""
+    return ((x >= hi) & (dx > 0)) | ((x <= lo) & (dx < 0))
+
+
 def _nonwindup(x, dx, lo, hi):
     """dx/dt of a lag whose state is held within [lo, hi]: no motion outwards at a
     limit (infinite limits: no limit)."""
-    return jnp.where(((x >= hi) & (dx > 0)) | ((x <= lo) & (dx < 0)), 0.0, dx)
+    return jnp.where(_pinned(x, dx, lo, hi), 0.0, dx)
+
+
+def _commanded(x, demand, dx, lo, hi):
+    """The command reported to the plant: the lag's state, or the regulator's
+    demand (the lag's input, beyond the limit) while the limiter holds the state.
+    Under the hard limits the applied input is the same either way (the limit);
+    the report then sees the limiter act (see `AvrPss`)."""
+    return jnp.where(_pinned(x, dx, lo, hi), demand, x)
 
 
 class AvrPss(AbstractController):
@@ -67,6 +80,21 @@ class AvrPss(AbstractController):
 
     Internal state: (exciter output u_f, washout state, lead-lag 1, lead-lag 2,
     SVC regulator output u_r). Diagnostics: (PSS output v_s, Vt - Vt_ref) in pu.
+
+    Commanded inputs: the exciter and the SVC regulator are non-windup lags whose
+    states stay at the limits (or past them by the solver's overshoot, up to 0.09
+    pu), so as commands they would equal the applied inputs up to that overshoot:
+    the peak command read as the ceiling (5.09 pu over 256 validation scenarios,
+    where the exciter asks for 173 pu), and the time on a limit was right only
+    because the overshoot exceeded `metrics.on_limit`'s 1e-9 pu (a state held
+    exactly at the limit read as never on it). While a limiter holds its lag (state
+    at the limit, the input pushing outwards) the commanded u_f is the regulator's
+    demand K_A (Vt_ref - Vt + v_s) (the lag's input: the field voltage the exciter
+    would settle to without a ceiling), and the commanded u_r is K_svc (Vt_ref -
+    Vt); otherwise the lag's state. The plant clips the command to the same limits,
+    so under the hard limits the applied inputs are unchanged; under the soft
+    limiter of training the applied input then approaches the limit instead of
+    sitting a softplus width inside it.
     """
 
     K_A: Scalar = _field(200.0)  # exciter gain (pu/pu)
@@ -118,15 +146,23 @@ class AvrPss(AbstractController):
         y_2 = x_2 + (self.T3 / self.T4) * (y_1 - x_2)  # lead-lag 2 output
         v_s = jnp.clip(y_2, -self.vs_max, self.vs_max)
         v_ref = operating_field_voltage(op, plant) / self.K_A  # u_f(0) = E_fd0
-        du_f = (self.K_A * (vt_err + v_ref + v_s) - u_f) / self.T_A
-        du_r = (self.K_svc * vt_err - u_r) / self.T_svc
+        demand_f = self.K_A * (vt_err + v_ref + v_s)  # the exciter lag's input
+        demand_r = self.K_svc * vt_err  # the SVC regulator lag's input
+        du_f = (demand_f - u_f) / self.T_A
+        du_r = (demand_r - u_r) / self.T_svc
+        lim_f, lim_r = (plant.uf_min, plant.uf_max), (plant.ur_min, plant.ur_max)
         ds = jnp.stack(
             [
-                _nonwindup(u_f, du_f, plant.uf_min, plant.uf_max),
+                _nonwindup(u_f, du_f, *lim_f),
                 (w_pu - x_w) / self.T_w,
                 (y_w - x_1) / self.T2,
                 (y_1 - x_2) / self.T4,
-                _nonwindup(u_r, du_r, plant.ur_min, plant.ur_max),
+                _nonwindup(u_r, du_r, *lim_r),
             ]
         )
-        return ControllerOutput(u_f, u_r, ds, jnp.stack([v_s, -vt_err]))
+        return ControllerOutput(
+            _commanded(u_f, demand_f, du_f, *lim_f),
+            _commanded(u_r, demand_r, du_r, *lim_r),
+            ds,
+            jnp.stack([v_s, -vt_err]),
+        )
