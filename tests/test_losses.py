@@ -62,3 +62,17 @@ def test_cvar_and_aggregate_closed_forms():
     assert float(aggregate(x, 0.5, 0.9)) == pytest.approx(4.5 + 0.5 * 9)
     g = jax.grad(lambda v: aggregate(v, 1.0, 0.8))(x)
     np.testing.assert_allclose(np.asarray(g), [0.1] * 8 + [0.6, 0.6])
+
+
+def test_each_loss_term_is_named_once():
+    """`TERMS` is the one list of term names: the weights are its names (plus the two
+    bands), `loss_terms` returns exactly them, and the tuner's [loss] table takes them."""
+    import dataclasses
+
+    from smibjax.losses import TERM_NAMES, TERMS, LossWeights
+    from tuning.config import load_config
+
+    assert TERM_NAMES == tuple(TERMS)
+    fields = {f.name for f in dataclasses.fields(LossWeights)}
+    assert fields == set(TERMS) | {"delta_band", "Vt_band"}
+    assert set(load_config()["loss"]) >= set(TERMS)
