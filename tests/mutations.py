@@ -346,7 +346,17 @@ def run_one(m: Mutant, cache: Path, timeout: float, verbose: bool) -> dict:
         ).stdout.strip()
         if not where.startswith(str(copy)):
             return {"status": "error", "detail": f"smibjax imported from {where}"}
-        cmd = [sys.executable, "-m", "pytest", "-x", "-q", "-p", "no:cacheprovider"]
+        cmd = [
+            sys.executable,
+            "-m",
+            "pytest",
+            "-x",
+            "-q",
+            "-p",
+            "no:cacheprovider",
+            "-n",
+            "0",
+        ]
         t0 = time.perf_counter()
         try:
             p = subprocess.run(

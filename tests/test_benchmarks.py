@@ -19,6 +19,8 @@ import pytest
 from conftest import ROOT
 
 BENCH = ROOT / "benchmarks"
+# one worker starts the benchmark processes once for the whole module
+pytestmark = pytest.mark.xdist_group("benchmarks")
 TIMEOUT = 600
 
 # script -> tiny command-line arguments

@@ -18,6 +18,8 @@ pytest.importorskip("distributed")
 
 from smibjax.cli.cluster import chunk_key, dask_runner  # noqa: E402
 
+# one worker holds the module's LocalCluster
+pytestmark = pytest.mark.xdist_group("cluster")
 GAINS = sj.Gains.paper("aftsc", beta1=-1.0, beta2=-1.0)
 # 6 chunks of 4 (a vmapped batch of one scenario gives slightly different rows from a
 # batch of several, so each device slice holds at least 2 here and in the workers).

@@ -297,8 +297,10 @@ def test_avr_pss_tunes_its_own_parameters(tmp_path):
     cfgfile = tmp_path / "tiny.toml"
     base = (ROOT / "tuning" / "configs" / "avr_pss.toml").read_text()
     cfgfile.write_text(
-        base.replace('controller = "avr-pss"', 'controller = "avr-pss"\nsteps = 1')
-        + "\n[validation]\nn = 2\nevery = 1\nt_end = 4.0\n"
+        base.replace(
+            'controller = "avr-pss"', 'controller = "avr-pss"\nsteps = 1\nbatch = 2'
+        )
+        + "\n[validation]\nn = 2\nevery = 1\nt_end = 4.0\n[train]\nt_end = 3.0\n"
     )
     out = tmp_path / "run"
     assert main(["--config", str(cfgfile), "--out", str(out), "--quiet"]) == 0
