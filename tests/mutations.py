@@ -259,6 +259,25 @@ MUTANTS = [
         ),
         "no transfer-reactance check: the run integrates through the singularity",
     ),
+    # -- the batch engine (batch.py) and Monte Carlo run folders (cli/runs.py) ---------
+    Mutant(
+        "engine-structure-ignored",
+        "src/smibjax/controllers/synergetic.py",
+        "        return (self.oracle, box, float(self.phi_layer))",
+        "        return ()",
+        ("tests/test_batch.py::test_structure_is_part_of_the_program",),
+        "the engine's program key ignores the projection box: a second box reuses "
+        "the first one compiled in",
+    ),
+    Mutant(
+        "montecarlo-resume-recomputes-all",
+        "src/smibjax/cli/runs.py",
+        "    todo = [k for k in range(spec.n_chunks) if not _chunk_ok(out, spec, k)]",
+        "    todo = list(range(spec.n_chunks))",
+        ("tests/test_cluster.py::test_workers_end_to_end_finishes_an_interrupted_run",),
+        "--resume recomputes every chunk (same rows: only the kept files and the "
+        "count of computed scenarios tell)",
+    ),
     # -- atomic writes (cli/files.py)-----------------------------------------------------------
     Mutant(
         "io-write-in-place",
