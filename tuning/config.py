@@ -8,11 +8,6 @@ from pathlib import Path
 
 from smibjax import ParameterError
 
-try:
-    import tomllib
-except ModuleNotFoundError:  # pragma: no cover
-    import tomli as tomllib
-
 CONFIG_DIR = Path(__file__).parent / "configs"
 DEFAULT = CONFIG_DIR / "default.toml"
 
@@ -21,13 +16,15 @@ _FREE_TABLES = {("gains", "bounds")}
 
 
 def load_toml(path: str | Path) -> dict:
-    p = Path(path)
-    if not p.is_file():
-        raise ParameterError(f"config file {str(p)!r} does not exist")
-    try:
-        return tomllib.loads(p.read_text())
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as e:  # (not UTF-8)
-        raise ParameterError(f"config file {str(p)!r} is not valid TOML: {e}") from e
+    """A configuration table from a TOML file (the one reader, `smibjax.cli.files`)."""
+    from smibjax.cli.files import read_data
+
+    if Path(path).suffix.lower() != ".toml":
+        raise ParameterError(f"config file {str(path)!r} is not allowed: must be .toml")
+    data = read_data(path)
+    if not isinstance(data, dict):  # pragma: no cover - a TOML document is a table
+        raise ParameterError(f"config file {str(path)!r} must hold a table")
+    return data
 
 
 def _merge(base: dict, over: dict, path=()) -> dict:
