@@ -45,7 +45,7 @@ def direct():
     return flags
 
 
-def cct(criterion):
+def cct(criterion, progress=None):
     return critical_clearing_times(
         {"stable": GAINS},
         PLANT,
@@ -54,6 +54,7 @@ def cct(criterion):
         scan_step=0.05,
         adaptation="realizable",
         criterion=criterion,
+        progress=progress,
     )
 
 
@@ -100,7 +101,13 @@ def test_non_monotone_lane_gives_the_first_boundary(direct):
 
 def test_synchronism_criterion_differs_from_settled(direct):
     """No loss of synchronism up to t_end: 0.2-0.45 s count (unsettled, not lost)."""
-    res = cct("synchronism")
+    calls = []
+    res = cct("synchronism", progress=lambda done, total: calls.append((done, total)))
+    # progress is a callback (the core never draws a bar): from 0 to its total,
+    # never backwards, once before the scan and after each batched call
+    total = calls[0][1]
+    assert calls[0] == (0, total) and calls[-1] == (total, total)
+    assert all(a[0] <= b[0] for a, b in zip(calls, calls[1:], strict=False))
     assert res["criterion"] == "synchronism" and res["status"] == ["ok"]
     c = res["cct"][0]
     assert 0.8 < c < 0.95  # settled gives < 0.2 s (above)

@@ -201,7 +201,8 @@ def critical_clearing_times(
     progress: Callable[[int, int], None] | None = None,
 ) -> dict:
     """CCT (s) of every gain set at every fault location (module docstring: scan,
-    then bisection in the first unstable bracket).
+    then bisection in the first unstable bracket). `progress(done, total)`, if given,
+    is called before the scan and after each batched call.
 
     `gain_sets`: name -> the paper's `Gains` (run with `adaptation`) or a controller
     (`smibjax.controllers`); all of one kind, since the lanes are stacked.
@@ -268,6 +269,7 @@ def critical_clearing_times(
     n_scan = len(scan)
     steps = max(1, math.ceil(math.log2(max(np.max(np.diff(scan)), tol) / tol)))
     report = progress or (lambda done, total: None)
+    report(0, steps + 1)
     lanes = np.repeat(np.arange(n_lanes), n_scan)
     grid = stable_at(np.tile(scan, n_lanes), lanes).reshape(n_lanes, n_scan)
     report(1, steps + 1)

@@ -101,7 +101,8 @@ def _sets(args):
 
 def run_grouped(args, sets, plant, op, init, progress=None) -> dict:
     """`critical_clearing_times` with the CCT options of `args`, once per kind of
-    controller (`smibjax.cct.lane_kind`), merged in the order of `sets`."""
+    controller (`smibjax.cct.lane_kind`), merged in the order of `sets`; `progress`:
+    a factory of one progress callback per call (e.g. `progress_bar`)."""
     from .compare import merge_cct
 
     groups: dict[tuple, dict] = {}
@@ -125,7 +126,7 @@ def run_grouped(args, sets, plant, op, init, progress=None) -> dict:
             max_steps=args.max_steps,
             rtol=args.rtol,
             atol=args.atol,
-            progress=progress,
+            progress=progress() if progress else None,
         )
         for g in groups.values()
     ]
@@ -165,7 +166,7 @@ def run(args) -> int:
                 "is written beside it as .png)"
             )
     sets, (plant, op, init) = _sets(args)
-    res = run_grouped(args, sets, plant, op, init, progress_bar())
+    res = run_grouped(args, sets, plant, op, init, progress_bar)
     res["context"] = args.contexts
     print_cct(res)
     if out is not None:
