@@ -31,7 +31,7 @@ from _common import result_name
 from _results import write_results
 
 import smibjax as sj
-from smibjax.montecarlo import COLUMNS, INT_COLUMNS, MonteCarloSpec, compute_chunk
+from smibjax.montecarlo import COLUMNS, MonteCarloSpec, compute_chunk
 from smibjax.parameters import PLANT_NAMES
 
 SETTLING_TARGET = 0.005  # s: settling times within 5 ms of the exact law's
@@ -196,7 +196,10 @@ def main() -> None:
             parts[w].append(compute_chunk(specs[w], k))
             wall[w] += time.perf_counter() - t0
     t_all = time.perf_counter() - t_all
-    rows = {w: {c: np.concatenate([p[c] for p in parts[w]]) for c in COLUMNS} for w in widths}
+    rows = {
+        w: {c: np.concatenate([p[c] for p in parts[w]]) for c in COLUMNS}
+        for w in widths
+    }
     rates = {w: args.n / wall[w] for w in widths}
     effects = {w: effect(rows[0.0], rows[w]) for w in widths}
     steps = {w: effects[w]["num_steps"] for w in widths}
@@ -231,7 +234,9 @@ def main() -> None:
             f"{x['chunk_max_over_mean']['max']:.2f}) |\n"
         )
     print(md)
-    print(f"compile (first chunk) s: { {f'{w:g}': round(s, 1) for w, s in compile_s.items()} }")
+    print(
+        f"compile (first chunk) s: { {f'{w:g}': round(s, 1) for w, s in compile_s.items()} }"
+    )
     print(f"timed loop: {t_all:.1f} s")
     out = Path(args.out)
     name = result_name("tail", args.tag)
