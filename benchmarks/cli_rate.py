@@ -33,7 +33,7 @@ import numpy as np
 ROOT = HERE.parent
 
 
-def cli(n: int, controller: str, extra: list[str], out: Path) -> float:
+def cli(n: int, controller: str, extra: list[str], out: Path, keep=None) -> float:
     """Seconds of one `python -m smibjax montecarlo` process (spawn to exit)."""
     argv = [sys.executable, "-m", "smibjax", "montecarlo", "--n", str(n)]
     argv += ["--controller", controller, "--set", "beta1=-1", "--set", "beta2=-1"]
@@ -41,6 +41,9 @@ def cli(n: int, controller: str, extra: list[str], out: Path) -> float:
     t0 = time.perf_counter()
     subprocess.run(argv, check=True, cwd=ROOT, capture_output=True)
     seconds = time.perf_counter() - t0
+    if keep is not None:
+        keep.parent.mkdir(parents=True, exist_ok=True)
+        shutil.copy(out / "scenarios.csv", keep)
     shutil.rmtree(out)
     return seconds
 
@@ -73,6 +76,7 @@ def main() -> None:
     ap.add_argument("--repeat", type=int, default=1)
     ap.add_argument("--n-scipy", type=int, default=4)
     ap.add_argument("--out", default=str(HERE / "results"))
+    ap.add_argument("--keep", metavar="DIR", help="keep each variant's large-n rows")
     args = ap.parse_args()
     variants = {"aftsc exact": ("aftsc", []), "asc exact": ("asc", [])}
     for w in args.widths:
@@ -87,7 +91,11 @@ def main() -> None:
                 order = list(variants)
                 for v in order[r % len(order) :] + order[: r % len(order)]:
                     c, extra = variants[v]
-                    s = cli(n, c, extra, tmp / "run")
+                    keep = None
+                    if args.keep and n == args.large:
+                        name = v.replace(" ", "_").replace("=", "")
+                        keep = Path(args.keep) / f"{name}.csv"
+                    s = cli(n, c, extra, tmp / "run", keep)
                     times[v][n].append(s)
                     print(f"  {v} n={n}: {s:.1f} s", flush=True)
     finally:

@@ -8,6 +8,7 @@ import pytest
 from smibjax.cli import _parser, main
 from smibjax.cli.cct import _sets
 from smibjax.controllers import Synergetic
+from smibjax.parameters import GAIN_NAMES, Gains
 
 
 def _one_line(capsys, needle):
@@ -57,6 +58,7 @@ def test_controller_without_the_law_refuses_it(controller, capsys, tmp_path):
 
 
 def test_width_overrides_the_gains_file_and_reaches_cct(tmp_path):
+    g = Gains.paper("aftsc", beta1=-1.0, beta2=-1.0)
     gains = tmp_path / "g.json"
     gains.write_text(
         json.dumps(
@@ -66,7 +68,9 @@ def test_width_overrides_the_gains_file_and_reaches_cct(tmp_path):
                 "adaptation": "oracle",
                 "plant": {"preset": "paper"},
                 "options": {"phi_layer": 0.01},
-                "gains": {"beta1": -1.0, "beta2": -1.0},
+                "gains": {
+                    **{k: float(getattr(g, k)) for k in GAIN_NAMES},
+                },
             }
         )
     )
