@@ -10,7 +10,7 @@ scenarios of the same Monte Carlo, in the same run. Writes
 benchmarks/results/cli_rate.json.
 
     python benchmarks/cli_rate.py [--small 512] [--large 8192] [--widths 0.01]
-        [--repeat 1] [--n-scipy 4]
+        [--order] [--repeat 1] [--n-scipy 4] [--keep DIR] [--tag NAME]
 """
 
 from __future__ import annotations
@@ -74,13 +74,20 @@ def main() -> None:
     ap.add_argument("--large", type=int, default=8192)
     ap.add_argument("--widths", type=float, nargs="*", default=[0.01])
     ap.add_argument("--repeat", type=int, default=1)
+    ap.add_argument(
+        "--order", action="store_true", help="also each with --order reclose-delay"
+    )
     ap.add_argument("--n-scipy", type=int, default=4)
     ap.add_argument("--out", default=str(HERE / "results"))
+    ap.add_argument("--tag", default="")
     ap.add_argument("--keep", metavar="DIR", help="keep each variant's large-n rows")
     args = ap.parse_args()
     variants = {"aftsc exact": ("aftsc", []), "asc exact": ("asc", [])}
     for w in args.widths:
         variants[f"aftsc W={w:g}"] = ("aftsc", ["--phi-layer", str(w)])
+    if args.order:  # each variant again with --order reclose-delay
+        for v, (c, extra) in list(variants.items()):
+            variants[f"{v} ordered"] = (c, [*extra, "--order", "reclose-delay"])
     tmp = Path(tempfile.mkdtemp(prefix="smibjax-cli-rate-"))
     times = {v: {args.small: [], args.large: []} for v in variants}
     try:
@@ -127,15 +134,16 @@ def main() -> None:
     )
     for v, r in rates.items():
         print(
-            f"{v:16} {r['seconds_small']:8.1f} {r['seconds_large']:8.1f} "
+            f"{v:24} {r['seconds_small']:8.1f} {r['seconds_large']:8.1f} "
             f"{r['marginal_scenarios_per_s']:8.0f} {r['over_exact']:8.2f} "
             f"{r['over_scipy_lsoda']:8.0f}"
         )
+    from _common import result_name
     from _results import write_results
 
     write_results(
         args.out,
-        "cli_rate",
+        result_name("cli_rate", args.tag),
         {
             "command": "python -m smibjax montecarlo --n N --controller C --set "
             "beta1=-1 --set beta2=-1 [--phi-layer W] (defaults otherwise: seed 0, "

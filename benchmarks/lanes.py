@@ -3,8 +3,9 @@ slowest is done, so a Monte Carlo chunk costs about (its slowest lane's steps) x
 width) on each device (`parallel.device_map` gives each device a contiguous slice).
 This measures the chunks of the default distribution as the command runs them (index
 order) against the same scenarios ordered by a cheap cost predictor (the reclosing
-time t_reclose, the scenario input that ranks the step counts best: Spearman -0.88 for
-AFTSC), chunk by chunk through the batch engine, the two orders alternated.
+delay t_reclose - t_clear: the longer the line is out, the shorter the settled tail;
+Spearman -0.98 with the AFTSC step counts on 8,192 scenarios), chunk by chunk through
+the batch engine, the two orders alternated.
 
     python benchmarks/lanes.py [--n 4096] [--chunk 256] [--controller aftsc]
         [--phi-layer 0]
@@ -48,7 +49,9 @@ def main() -> None:
     faults, _, _ = sample_scenarios(0, 0, args.n, ScenarioDistribution(), sj.Plant())
     orders = {
         "index": np.arange(args.n),
-        "t_reclose": np.argsort(np.asarray(faults.t_reclose), kind="stable"),
+        "reclose_delay": np.argsort(
+            np.asarray(faults.t_reclose - faults.t_clear), kind="stable"
+        ),
     }
     engine = Engine()
 
@@ -86,13 +89,13 @@ def main() -> None:
         }
         for o in orders
     }
-    res["speedup"] = wall["index"] / wall["t_reclose"]
-    res["same_steps"] = bool(np.array_equal(steps["index"], steps["t_reclose"]))
+    res["speedup"] = wall["index"] / wall["reclose_delay"]
+    res["same_steps"] = bool(np.array_equal(steps["index"], steps["reclose_delay"]))
     res["max_settling_diff_s"] = float(
-        np.max(np.abs(settle["index"] - settle["t_reclose"]), initial=0.0)
+        np.max(np.abs(settle["index"] - settle["reclose_delay"]), initial=0.0)
     )
     res["rows_bitwise_equal"] = bool(
-        np.array_equal(settle["index"], settle["t_reclose"], equal_nan=True)
+        np.array_equal(settle["index"], settle["reclose_delay"], equal_nan=True)
     )
     for o in orders:
         print(

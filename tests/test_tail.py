@@ -93,3 +93,68 @@ def test_montecarlo_keeps_the_width_and_resume_needs_it(tmp_path, capsys):
     assert main([*argv, "--resume"]) == 2  # without the width: a different run
     _one_line(capsys, "--resume: options = {} differs from the run")
     assert main([*argv, "--resume", "--phi-layer", "0.01"]) == 0
+
+
+def _stable_spec(**kw):
+    from smibjax.montecarlo import MonteCarloSpec
+
+    g = Gains.paper("aftsc", beta1=-1.0, beta2=-1.0)
+    gains = {k: float(getattr(g, k)) for k in GAIN_NAMES}
+    return MonteCarloSpec(gains=gains, t_end=3.0, **{"n": 8, "chunk": 4, **kw})
+
+
+def test_reclose_delay_order_changes_the_chunks_not_the_rows():
+    import numpy as np
+
+    from smibjax.montecarlo import COLUMNS, compute_chunk
+
+    def rows(spec):
+        parts = [compute_chunk(spec, k) for k in range(spec.n_chunks)]
+        return {c: np.concatenate([p[c] for p in parts]) for c in COLUMNS}, parts
+
+    ref, _ = rows(_stable_spec())
+    for chunk in (4, 3):
+        spec = _stable_spec(order="reclose_delay", chunk=chunk)
+        got, parts = rows(spec)
+        index = got["index"]
+        assert not np.array_equal(index, np.arange(8))  # chunks hold other indices
+        for k, p in enumerate(parts):  # each chunk: its indices, in index order
+            assert np.array_equal(p["index"], np.sort(spec.chunk_indices(k)))
+        rank = np.argsort(index)
+        for c in COLUMNS:  # every row bitwise the same
+            assert np.array_equal(got[c][rank], ref[c], equal_nan=True), c
+    delay = ref["t_reclose"] - ref["t_clear"]
+    spec = _stable_spec(order="reclose_delay")
+    first = spec.chunk_indices(0)
+    assert delay[first].max() <= delay[spec.chunk_indices(1)].min()
+
+
+def test_order_on_the_command_line_and_old_runs_resume(tmp_path, capsys):
+    import numpy as np
+
+    from smibjax.cli.runs import read_rows
+
+    out = tmp_path / "run"
+    argv = ["montecarlo", "--n", "6", "--chunk", "3", "--t-end", "3"]
+    argv += ["--set", "beta1=-1", "--set", "beta2=-1", "--out", str(out)]
+    assert main([*argv, "--order", "reclose-delay"]) == 0
+    spec = json.loads((out / "run.json").read_text())["spec"]
+    assert spec["order"] == "reclose_delay"
+    rows = read_rows(out / "scenarios.csv")
+    assert np.array_equal(rows["index"], np.arange(6))
+    capsys.readouterr()
+    assert main([*argv, "--order", "bogus"]) == 2
+    _one_line(capsys, "argument --order: invalid choice: 'bogus'")
+    # a run written before the spec had `order`: resumes as the index order it was
+    old = tmp_path / "old"
+    assert main([*argv[:-1], str(old)]) == 0
+    manifest = json.loads((old / "run.json").read_text())
+    del manifest["spec"]["order"]
+    manifest["complete"] = False
+    (old / "run.json").write_text(json.dumps(manifest))
+    (old / "chunks" / "000001.npz").unlink()
+    capsys.readouterr()
+    assert main([*argv[:-1], str(old), "--resume"]) == 0
+    again = read_rows(old / "scenarios.csv")
+    for c in rows:
+        assert np.array_equal(again[c], rows[c], equal_nan=True), c
