@@ -11,8 +11,6 @@ resume, CSV and markdown) are the command line's: `smibjax.cli.runs`.
 from __future__ import annotations
 
 import dataclasses
-import functools
-import json
 import math
 import numbers
 from collections.abc import Iterable, Iterator
@@ -37,14 +35,7 @@ __all__ = [
     "outcome_columns",
     "in_process_runner",
     "INT_COLUMNS",
-    "ORDERS",
 ]
-
-# How scenarios are grouped into chunks: "index" (chunk k holds [k chunk, (k + 1)
-# chunk)) or "reclose_delay" (the n scenarios ordered by their reclosing delay
-# t_reclose - t_clear, a cheap predictor of the AFTSC step count, then cut into chunks:
-# the lanes of a chunk finish together; benchmarks/README.md, "Lanes that wait").
-ORDERS = ("index", "reclose_delay")
 
 # One row per scenario in scenarios.csv, in this order.
 COLUMNS = (
@@ -97,9 +88,8 @@ class MonteCarloSpec:
     is a registry name (`smibjax.controllers`; "" : the paper's law, AFTSC or ASC by
     alpha) and `options` its options (the paper's law: projection, phi_layer, as in a
     gains file); `dist` is a
-    `ScenarioDistribution.to_dict()`. The chunk size and `order` (`ORDERS`: which
-    scenarios chunk k holds) are part of the spec only because chunk files are named by
-    chunk; the rows do not depend on them (rows are always reported in index order).
+    `ScenarioDistribution.to_dict()`. The chunk size is part of the spec only because
+    chunk files are named by index; the rows do not depend on it.
     """
 
     n: int
@@ -120,16 +110,10 @@ class MonteCarloSpec:
     rtol: float = 1e-6
     atol: float = 1e-8
     max_steps: int = 50_000
-    order: str = "index"
 
     def __post_init__(self):
         for name in ("n", "chunk", "max_steps"):
             require_count(name, getattr(self, name))
-        if self.order not in ORDERS:
-            raise ParameterError(
-                f"order = {self.order!r} is not allowed: must be one of "
-                f"{', '.join(ORDERS)}"
-            )
         if self.adaptation not in ("oracle", "realizable"):
             raise ParameterError(
                 f"adaptation = {self.adaptation!r} is not allowed: must be 'oracle' "
@@ -163,21 +147,6 @@ class MonteCarloSpec:
     def chunk_range(self, k: int) -> tuple[int, int]:
         """Scenario indices [start, stop) of chunk k."""
         return k * self.chunk, min(self.n, (k + 1) * self.chunk)
-
-    def chunk_indices(self, k: int) -> np.ndarray:
-        """The scenario indices of chunk k, in the order of its lanes."""
-        start, stop = self.chunk_range(k)
-        if self.order == "index":
-            return np.arange(start, stop)
-        plant = self.parameters()[1]
-        key = (
-            self.seed,
-            self.n,
-            json.dumps(self.dist, sort_keys=True),
-            float(plant.D),
-            float(plant.Pm),
-        )
-        return _delay_order(*key)[start:stop]
 
     def distribution(self) -> ScenarioDistribution:
         return ScenarioDistribution.from_dict(self.dist)
@@ -247,16 +216,9 @@ def compute_chunk(spec: MonteCarloSpec, k: int, devices=None) -> dict[str, np.nd
         )
     start, stop = spec.chunk_range(k)
     params = spec.parameters()
-    idx = spec.chunk_indices(k)
-    if spec.order == "index":
-        faults, D, Pm = sample_scenarios(
-            spec.seed, start, stop, spec.distribution(), params[1]
-        )
-    else:  # scenario i depends on (seed, i) only: the same draws as in index order
-        faults, D, Pm = jax.tree_util.tree_map(
-            lambda a: a[jnp.asarray(idx)],
-            sample_scenarios(spec.seed, 0, spec.n, spec.distribution(), params[1]),
-        )
+    faults, D, Pm = sample_scenarios(
+        spec.seed, start, stop, spec.distribution(), params[1]
+    )
     scen = (faults, D, Pm)
     # Pad the last chunk so that every chunk has one compiled shape, and never run a
     # batch of one: XLA compiles a batch of one to a different program, whose rounding
@@ -290,7 +252,7 @@ def compute_chunk(spec: MonteCarloSpec, k: int, devices=None) -> dict[str, np.nd
     )
     m = stop - start
     rows = {k_: np.asarray(v)[:m] for k_, v in out.items()}
-    rows["index"] = idx
+    rows["index"] = np.arange(start, stop)
     rows["t_fault"] = np.asarray(faults.t_fault)
     rows["t_clear"] = np.asarray(faults.t_clear)
     rows["t_reclose"] = np.asarray(faults.t_reclose)
@@ -299,24 +261,7 @@ def compute_chunk(spec: MonteCarloSpec, k: int, devices=None) -> dict[str, np.nd
     rows["fault_reactance"] = np.asarray(faults.Xf)
     rows["D"] = np.asarray(D)
     rows["Pm"] = np.asarray(Pm)
-    rank = np.argsort(idx, kind="stable")  # rows in index order
-    return {
-        c: (rows[c].astype(int) if c in INT_COLUMNS else rows[c])[rank] for c in COLUMNS
-    }
-
-
-@functools.lru_cache(maxsize=8)
-def _delay_order(seed: int, n: int, dist: str, D: float, Pm: float) -> np.ndarray:
-    """The scenario indices 0..n-1 ordered by reclosing delay (stable sort)."""
-    from .parameters import Plant as _Plant
-
-    faults, _, _ = sample_scenarios(
-        seed, 0, n, ScenarioDistribution.from_dict(json.loads(dist)), _Plant(D=D, Pm=Pm)
-    )
-    delay = np.asarray(faults.t_reclose) - np.asarray(faults.t_clear)
-    order = np.argsort(delay, kind="stable")
-    order.flags.writeable = False
-    return order
+    return {c: rows[c].astype(int) if c in INT_COLUMNS else rows[c] for c in COLUMNS}
 
 
 def outcome_columns(out: Outcome) -> dict:

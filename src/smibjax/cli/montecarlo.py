@@ -26,8 +26,7 @@ __all__ = ["add_parser", "run", "add_mc_options", "spec_from_args", "runner_of"]
 
 
 def add_mc_options(p, n_default: int) -> None:
-    """--n, --seed, --dist, --chunk, --t-end, --order, --resume, --scheduler,
-    --workers."""
+    """--n, --seed, --dist, --chunk, --t-end, --resume, --scheduler, --workers."""
     p.add_argument("--n", type=int, default=n_default, help="number of scenarios")
     p.add_argument("--seed", type=int, default=0, help="scenario seed (default 0)")
     p.add_argument(
@@ -43,14 +42,6 @@ def add_mc_options(p, n_default: int) -> None:
         help="scenarios per batch (default 256: measured fastest on 2 cores)",
     )
     p.add_argument("--t-end", type=positive, default=10.0, help="horizon (s)")
-    p.add_argument(
-        "--order",
-        choices=["index", "reclose-delay"],
-        default="index",
-        help="which scenarios share a chunk: index (default) or reclose-delay (ordered "
-        "by t_reclose - t_clear, which predicts the AFTSC step count: the lanes of a "
-        "chunk finish together); the rows are the same and in index order either way",
-    )
     p.add_argument(
         "--resume", action="store_true", help="finish the run in --out after a stop"
     )
@@ -91,7 +82,6 @@ def spec_from_args(args, params, plant, op, init, dist) -> MonteCarloSpec:
         rtol=args.rtol,
         atol=args.atol,
         max_steps=args.max_steps,
-        order=getattr(args, "order", "index").replace("-", "_"),
     )
 
 

@@ -124,11 +124,7 @@ def _chunk_ok(out: Path, spec: MonteCarloSpec, k: int) -> bool:
     must = [c for c in COLUMNS if c != "budget_exhausted"]  # older chunks lack it
     return all(
         c in cols and cols[c].shape == (stop - start,) for c in must
-    ) and np.array_equal(cols["index"], np.sort(spec.chunk_indices(k)))
-
-
-# Spec fields added after runs were written, with the value those runs had.
-_BEFORE_FIELDS = {"order": "index"}
+    ) and np.array_equal(cols["index"], np.arange(start, stop))
 
 
 def _check_resume(out: Path, spec: MonteCarloSpec) -> dict:
@@ -138,7 +134,7 @@ def _check_resume(out: Path, spec: MonteCarloSpec) -> dict:
             f"--resume: {str(out)!r} holds no Monte Carlo run (no run.json)"
         )
     saved = json.loads(manifest.read_text())
-    old = {**_BEFORE_FIELDS, **saved.get("spec", {})}
+    old = saved.get("spec", {})
     new = spec.to_dict()
     for key in new:
         if old.get(key) != new[key]:
@@ -206,8 +202,6 @@ def run_montecarlo(
                 {c: z[c] if c in z else np.zeros_like(z["stable"]) for c in COLUMNS}
             )
     rows = {c: np.concatenate([p[c] for p in parts]) for c in COLUMNS}
-    rank = np.argsort(rows["index"], kind="stable")  # chunks may hold any indices
-    rows = {c: v[rank] for c, v in rows.items()}
     summary = summarize(rows)
     write_csv(out / "scenarios.csv", rows)
     write_json(out / "summary.json", summary)
