@@ -66,6 +66,14 @@ def scenarios(seed: int, n: int) -> sj.Fault:
     return sample_faults(jax.random.PRNGKey(seed), n, FaultDistribution())
 
 
+def montecarlo_faults(seed: int, n: int) -> sj.Fault:
+    """Scenarios 0..n-1 of `python -m smibjax montecarlo --seed SEED` (the default
+    ScenarioDistribution: D and Pm are not drawn), as a batched `Fault`."""
+    from smibjax.scenarios import ScenarioDistribution, sample_scenarios
+
+    return sample_scenarios(seed, 0, n, ScenarioDistribution(), sj.Plant())[0]
+
+
 def take(tree, n: int):
     """The first n scenarios of a batched pytree."""
     return jax.tree_util.tree_map(lambda a: a[:n], tree)

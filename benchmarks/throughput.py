@@ -1,8 +1,13 @@
 """Scenarios per second for 10 s fault scenarios, AFTSC (alpha = 5/7) and ASC
 (alpha = 1), against batch size, on one core and on all cores (issue 6).
 
-Faults from the default FaultDistribution (seed --seed), gains beta1 = beta2 = -1, the
-default adaptive solver of `simulate` (Tsit5, rtol 1e-6, atol 1e-8). The batch is one
+The headline rows ("montecarlo") run a Monte Carlo batch: scenarios 0..batch-1 of
+`python -m smibjax montecarlo --seed SEED` (the default ScenarioDistribution, drawn by
+`smibjax.scenarios.sample_scenarios`, exactly the rows the command computes). A second
+kind of row ("identical", at batch >= 1024 only) runs the batch's first scenario in
+every lane: no lane waits for a slower one, an upper bound that a Monte Carlo does not
+reach. Gains beta1 = beta2 = -1, the default adaptive solver of `simulate` (Tsit5, rtol
+1e-6, atol 1e-8). The batch is one
 jit(vmap(simulate + metrics)) call per host device (`smibjax.parallel.device_map`),
 returning the stable flag, the settling time and the step count; the time is the best
 of --repeat calls after a warm-up (compiling) call. The accuracy of delta is checked
@@ -30,6 +35,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import argparse
 
 import jax
+import jax.numpy as jnp
 import matplotlib
 import numpy as np
 
@@ -45,8 +51,8 @@ from _common import (
     enable_cache,
     gains,
     host_devices,
+    montecarlo_faults,
     result_name,
-    scenarios,
     status,
     take,
     timed,
@@ -76,6 +82,14 @@ def parse_args(argv=None):
     )
     ap.add_argument("--t-end", type=float, default=10.0, help="scenario length (s)")
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument(
+        "--kinds",
+        nargs="+",
+        choices=["montecarlo", "identical"],
+        default=["montecarlo", "identical"],
+        help="montecarlo: the Monte Carlo's own scenarios (the headline); identical: "
+        "its first scenario in every lane (batch >= 1024 only)",
+    )
     add_tolerance_args(ap)
     ap.add_argument("--out", default=str(DEFAULT_OUT))
     return ap.parse_args(argv)
@@ -84,7 +98,7 @@ def parse_args(argv=None):
 def main(argv=None) -> None:
     args = parse_args(argv)
     cache = enable_cache()
-    pool = scenarios(args.seed, max(max(args.batches), args.n_check))
+    pool = montecarlo_faults(args.seed, max(max(args.batches), args.n_check))
     rows, accuracy = [], {}
     for ctrl in args.controllers:
         g = gains(ctrl)
@@ -102,8 +116,17 @@ def main(argv=None) -> None:
             }
         for ndev in args.devices:
             devs = host_devices(ndev)
-            for batch in args.batches:
+            for kind, batch in [
+                (k, b)
+                for b in args.batches
+                for k in args.kinds
+                if k == "montecarlo" or b >= TARGET_BATCH
+            ]:
                 faults = take(pool, batch)
+                if kind == "identical":
+                    faults = jax.tree_util.tree_map(
+                        lambda a, batch=batch: jnp.repeat(a[:1], batch), faults
+                    )
 
                 def call(g=g, faults=faults, devs=devs, fn=fn):
                     return jax.block_until_ready(fn(g, faults, devs))
@@ -112,6 +135,7 @@ def main(argv=None) -> None:
                 steps = np.asarray(steps)
                 rate = batch / best
                 r = {
+                    "kind": kind,
                     "controller": ctrl,
                     "devices": ndev,
                     "batch": batch,
@@ -128,25 +152,29 @@ def main(argv=None) -> None:
                     if np.any(np.asarray(stable))
                     else None,
                 }
-                judged = batch >= TARGET_BATCH and ndev >= TARGET_DEVICES
+                judged = (
+                    batch >= TARGET_BATCH
+                    and ndev >= TARGET_DEVICES
+                    and kind == "montecarlo"
+                )
                 r["target_scenarios_per_s"] = TARGET[ctrl] if judged else None
                 r["status"] = status(rate, TARGET[ctrl]) if judged else "-"
                 rows.append(r)
                 print(
-                    f"  {ctrl} devices={ndev} batch={batch}: {rate:.1f} scen/s "
+                    f"  {ctrl} {kind} devices={ndev} batch={batch}: {rate:.1f} scen/s "
                     f"(first call {first:.1f} s)",
                     flush=True,
                 )
 
     print()
     print(
-        f"{'controller':10} {'dev':>3} {'batch':>6} {'scen/s':>9} {'target':>7} "
+        f"{'controller':10} {'kind':>10} {'dev':>3} {'batch':>6} {'scen/s':>9} {'target':>7} "
         f"{'status':>7} {'mean st':>8} {'max st':>7} {'us/sc-st':>8} {'stable':>6}"
     )
     for r in rows:
         tgt = r["target_scenarios_per_s"]
         print(
-            f"{r['controller']:10} {r['devices']:3d} {r['batch']:6d} "
+            f"{r['controller']:10} {r['kind']:>10} {r['devices']:3d} {r['batch']:6d} "
             f"{r['scenarios_per_s']:9.1f} {'' if tgt is None else f'{tgt:.0f}':>7} "
             f"{r['status']:>7} {r['mean_steps']:8.0f} {r['max_steps']:7d} "
             f"{r['us_per_scenario_step']:8.3f} {r['stable_fraction']:6.2f}"
@@ -161,7 +189,10 @@ def main(argv=None) -> None:
 
     config = {
         "scenario_s": args.t_end,
-        "faults": f"sample_faults(PRNGKey({args.seed}), n, FaultDistribution())",
+        "faults": f"montecarlo: sample_scenarios({args.seed}, 0, n, "
+        "ScenarioDistribution(), Plant()) (rows 0..n-1 of `montecarlo --seed "
+        f"{args.seed}`); identical: its first scenario in every lane",
+        "kinds": args.kinds,
         "gains": "Gains.paper(controller, beta1=-1, beta2=-1)",
         "solver": f"adaptive Tsit5, rtol {args.rtol:g}, atol {args.atol:g} "
         "(simulate's defaults: 1e-6, 1e-8)",
@@ -189,7 +220,13 @@ def main(argv=None) -> None:
     fig, ax = plt.subplots(figsize=(7, 4.5))
     for ctrl in args.controllers:
         for ndev in args.devices:
-            rr = [r for r in rows if r["controller"] == ctrl and r["devices"] == ndev]
+            rr = [
+                r
+                for r in rows
+                if r["controller"] == ctrl
+                and r["devices"] == ndev
+                and r["kind"] == "montecarlo"
+            ]
             ax.plot(
                 [r["batch"] for r in rr],
                 [r["scenarios_per_s"] for r in rr],

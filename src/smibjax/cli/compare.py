@@ -243,7 +243,7 @@ def write_compare(out: Path, summaries, rows, cct, contexts=None) -> None:
 def add_parser(sub) -> None:
     from .cct import add_cct_options
     from .montecarlo import add_mc_options
-    from .options import add_max_steps, add_tolerances
+    from .options import add_max_steps, add_phi_layer, add_tolerances
 
     k = sub.add_parser(
         "compare", help="Monte Carlo and CCT of several gain sets side by side"
@@ -276,6 +276,7 @@ def add_parser(sub) -> None:
         help="adaptation of every set (default: each file's, else oracle)",
     )
     add_max_steps(k)
+    add_phi_layer(k)
     add_tolerances(k)
     add_mc_options(k, 1000)
     add_cct_options(k, with_reactance=False)
@@ -294,6 +295,7 @@ def run(args) -> int:
         parse_sets,
         read_dist,
         warn_plant_sets,
+        with_phi_layer,
     )
 
     check_args(args)
@@ -307,6 +309,7 @@ def run(args) -> int:
         for m in messages:
             print(f"smibjax: {m}", file=sys.stderr)
         warn_plant_sets(ctx, sets)
+        ctx = with_phi_layer(ctx, args.phi_layer)
         base, i = label, 2
         while label in gain_sets:
             label, i = f"{base}-{i}", i + 1

@@ -9,6 +9,7 @@ the command-line flag of the value where there is one.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import datetime
 import math
 import re
@@ -16,7 +17,7 @@ import sys
 from pathlib import Path
 
 from ..controllers import CONTROLLERS, Synergetic, make_controller
-from ..gainsfile import Context, resolve
+from ..gainsfile import Context, resolve, synergetic_options
 from ..parameters import (
     GAIN_NAMES,
     PLANT_NAMES,
@@ -38,6 +39,8 @@ __all__ = [
     "add_common",
     "add_force",
     "add_max_steps",
+    "add_phi_layer",
+    "with_phi_layer",
     "add_tolerances",
     "parse_sets",
     "build_parameters",
@@ -111,7 +114,7 @@ def positive(text: str) -> float:
 
 def add_common(p: Parser, several_controllers: bool = False) -> None:
     """--controller (one, or `several_controllers`), --preset, --gains, --set,
-    --adaptation, --max-steps."""
+    --adaptation, --max-steps, --phi-layer."""
     p.add_argument(
         "--controller",
         choices=list(CONTROLLERS),
@@ -154,6 +157,36 @@ def add_common(p: Parser, several_controllers: bool = False) -> None:
         "the gains file's, else oracle",
     )
     add_max_steps(p)
+    add_phi_layer(p)
+
+
+def add_phi_layer(p: Parser) -> None:
+    p.add_argument(
+        "--phi-layer",
+        type=float,
+        default=None,
+        metavar="W",
+        help="boundary layer of the evolution law (units of phi; 0: the exact "
+        "finite-time law; aftsc/asc only; overrides the gains file's phi_layer "
+        "option): fewer solver steps in the settled tail (benchmarks/README.md, "
+        "'The settled tail')",
+    )
+
+
+def with_phi_layer(ctx: Context, layer: float | None) -> Context:
+    """`ctx` with its `phi_layer` option replaced by `layer` (None: unchanged),
+    validated by the paper's law's options (`synergetic_options`); a controller
+    without the option (none, avr-pss) refuses it with one line."""
+    if layer is None:
+        return ctx
+    if CONTROLLERS[ctx.controller] is not Synergetic:
+        raise ParameterError(
+            f"phi_layer = {layer!r} is not allowed for controller "
+            f"{ctx.controller!r}: only the paper's law (aftsc, asc) has a boundary "
+            "layer"
+        )
+    options = synergetic_options(ctx.controller, {**ctx.options, "phi_layer": layer})
+    return dataclasses.replace(ctx, options=options)
 
 
 def add_force(p: Parser) -> None:
@@ -308,6 +341,7 @@ def build_from_args(args, complete=False, controller=None):
         complete,
     )
     warn_plant_sets(ctx, sets)
+    ctx = with_phi_layer(ctx, getattr(args, "phi_layer", None))
     args.preset, args.adaptation = ctx.preset, ctx.adaptation
     args.context = ctx
     if controller is None:
