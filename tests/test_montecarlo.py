@@ -418,3 +418,20 @@ def test_resume_recomputes_a_damaged_chunk(reference_run, tmp_path, damage):
     (run / "scenarios.csv").unlink()
     run_montecarlo(spec(), run, resume=True, progress=False, plots=False)
     assert (run / "scenarios.csv").read_text() == (out / "scenarios.csv").read_text()
+
+
+def test_resume_reads_a_run_written_before_a_spec_field_existed(tmp_path):
+    """A run.json without a field added to the spec later (here `options`, `controller`)
+    resumes as that field's default, and only then."""
+    import json
+
+    from smibjax.cli.runs import _check_resume
+
+    s = MonteCarloSpec(n=4, chunk=2, t_end=3.0)
+    old = s.to_dict()
+    del old["options"], old["controller"]
+    (tmp_path / "run.json").write_text(json.dumps({"spec": old}))
+    assert _check_resume(tmp_path, s)["spec"] == old
+    other = MonteCarloSpec(n=4, chunk=2, t_end=3.0, options={"phi_layer": 0.01})
+    with pytest.raises(sj.ParameterError, match="--resume: options = .* differs"):
+        _check_resume(tmp_path, other)

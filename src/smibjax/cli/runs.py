@@ -136,11 +136,14 @@ def _check_resume(out: Path, spec: MonteCarloSpec) -> dict:
     saved = json.loads(manifest.read_text())
     old = saved.get("spec", {})
     new = spec.to_dict()
+    # a field added to the spec after the run was written: the run had its default
+    defaults = MonteCarloSpec(n=max(spec.n, 1)).to_dict()
     for key in new:
-        if old.get(key) != new[key]:
+        if old.get(key, defaults[key]) != new[key]:
             raise ParameterError(
                 f"--resume: {key} = {new[key]!r} differs from the run in "
-                f"{str(out)!r} ({key} = {old.get(key)!r}); repeat its options"
+                f"{str(out)!r} ({key} = {old.get(key, defaults[key])!r}); repeat its "
+                "options"
             )
     return saved
 
