@@ -15,8 +15,6 @@ from smibjax.cli.plotting import save_figure, subplots
 from .params import gains_to_dict
 from .train import with_damping
 
-_save = save_figure
-
 
 def plot_history(out: Path, history: list[dict], validation: list[dict]) -> None:
     fig, ax = subplots(3, 1, figsize=(8, 8), sharex=True)
@@ -36,7 +34,7 @@ def plot_history(out: Path, history: list[dict], validation: list[dict]) -> None
     for a in ax:
         a.grid(alpha=0.3)
     fig.tight_layout()
-    _save(fig, out / "history.png")
+    save_figure(fig, out / "history.png")
 
 
 def plot_hist(out: Path, m0, m1) -> None:
@@ -57,7 +55,7 @@ def plot_hist(out: Path, m0, m1) -> None:
     ax.set_ylabel("scenarios")
     ax.legend()
     fig.tight_layout()
-    _save(fig, out / "settling_hist.png")
+    save_figure(fig, out / "settling_hist.png")
 
 
 def plot_trajectories(out: Path, runs: dict) -> None:
@@ -76,7 +74,7 @@ def plot_trajectories(out: Path, runs: dict) -> None:
         ax.grid(alpha=0.3)
     np.atleast_1d(axes)[-1].set_xlabel("t (s)")
     fig.tight_layout()
-    _save(fig, out / "trajectories.png")
+    save_figure(fig, out / "trajectories.png")
 
 
 def _fmt(x):

@@ -62,9 +62,11 @@ class Parser(argparse.ArgumentParser):
     reported with the help of the (sub)command they were given to, and the set of
     its long flags (`flags`, for `one_line`)."""
 
+    def __init__(self, *args, **kw):
+        self.flags: set[str] = set()  # before argparse adds -h/--help
+        super().__init__(*args, **kw)
+
     def add_argument(self, *names, **kw):
-        if "flags" not in self.__dict__:
-            self.flags: set[str] = set()
         self.flags.update(n for n in names if n.startswith("--"))
         return super().add_argument(*names, **kw)
 
