@@ -23,6 +23,66 @@ import smibjax as sj  # noqa: E402
 STABLE = {"beta1": -1.0, "beta2": -1.0}
 
 
+def cli_env() -> dict:
+    """The environment of the suite's command-line processes: the suite's compilation
+    cache, and one host device like this process, so that a process runs the programs
+    this one compiled (found in the cache) and gives this process's numbers."""
+    return {
+        **os.environ,
+        "SMIBJAX_CACHE_DIR": str(ROOT / ".jax_cache"),
+        "XLA_FLAGS": "--xla_force_host_platform_device_count=1",
+    }
+
+
+def _whole_suite(config) -> bool:
+    """The session runs every test of tests/test_benchmarks.py (no -k or -m filter,
+    and the module or a folder above it among the arguments)."""
+    if config.option.keyword or config.option.markexpr:
+        return False
+    here = Path(__file__).parent.resolve()
+    args = [a.split("::")[0] for a in config.args] or ["."]
+    for a in args:
+        path = (Path(config.invocation_params.dir) / a).resolve()
+        if path == here / "test_benchmarks.py" or path in (here, *here.parents):
+            return True
+    return False
+
+
+def pytest_sessionstart(session):
+    """Under pytest-xdist, the controller (which runs no test) runs the benchmark
+    scripts' tiny runs in the background from the start (`bench_chain`); the workers
+    inherit where they write."""
+    config = session.config
+    if hasattr(config, "workerinput") or not config.getoption("numprocesses", None):
+        return
+    if not _whole_suite(config):
+        return
+    import tempfile
+
+    import bench_chain
+
+    folder = Path(tempfile.mkdtemp(prefix="smibjax-benchmarks-"))
+    os.environ[bench_chain.ENV] = str(folder)
+    config._bench_chain = bench_chain.Chain(folder, bench_chain.TINY).start()
+
+
+def pytest_sessionfinish(session):
+    chain = getattr(session.config, "_bench_chain", None)
+    if chain is not None:
+        import shutil
+
+        chain.stop()
+        shutil.rmtree(chain.folder, ignore_errors=True)
+        os.environ.pop("SMIBJAX_BENCH_DIR", None)
+
+
+def pytest_collection_modifyitems(config, items):
+    """The benchmark tests last: they wait for the background scripts."""
+    items.sort(
+        key=lambda item: getattr(item.module, "__name__", "") == "test_benchmarks"
+    )
+
+
 @pytest.fixture(scope="session")
 def reference_runs():
     """Independent SciPy runs of MODEL.md, keyed like `jax_runs`."""

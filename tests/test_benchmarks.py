@@ -2,66 +2,31 @@
 they cannot rot. No wall-clock assertions: exit status 0, the JSON's keys, finite
 positive numbers, and the accuracy figures the scripts check.
 
-The scripts start together (one process each, so both cores work) the first time a
-test of this module needs one, each with its own persistent compilation cache under
-.jax_cache/, so that reruns skip most compiles. Batches of 4 on 2 devices: device_map
-splits a batch only into slices of 2 or more.
+The scripts run one after another in the background (`bench_chain`): under
+pytest-xdist in the controller process from the start of the session, beside the
+tests; otherwise from this module's first test. Each uses the suite's persistent
+compilation cache, so a later script finds what an earlier one compiled.
 """
 
 import json
 import math
 import os
-import subprocess
-import sys
 
 import pytest
 
-from conftest import ROOT
+from bench_chain import ENV, TIMEOUT, TINY, Chain, wait
 
-BENCH = ROOT / "benchmarks"
-# one worker starts the benchmark processes once for the whole module
+# collected last (conftest.py): by then the chain has mostly run
 pytestmark = pytest.mark.xdist_group("benchmarks")
-TIMEOUT = 600
-
-# script -> tiny command-line arguments
-TINY = {
-    "throughput": [
-        "--batches",
-        "4",
-        "--devices",
-        "1",
-        "2",
-        "--n-check",
-        "1",
-        "--t-end",
-        "1.3",  # every sampled fault (up to 1.0 s + 0.25 s) clears within the run
-        "--repeat",
-        "1",
-    ],
-    "vs_scipy": [
-        "--n-scipy",
-        "1",
-        "--batch",
-        "4",
-        "--devices",
-        "2",
-        "--t-end",
-        "1.5",  # through the first fault (t_fault 0.98 s) and its clearing
-        "--repeat",
-        "1",
-    ],
-    "gradients": ["--batch", "1", "--t-end", "1.5", "--repeat", "1"],
-    "compile": ["--cases", "simulate", "--repeat", "1", "--t-end", "0.8"],
-    "montecarlo": ["--n", "8", "--chunk", "4", "--t-end", "1.3"],
-    "stiff_solvers": ["--methods", "RK45", "Radau", "--t-end", "1.0"],
-    "cluster_scaling": ["--n", "8", "--chunk", "4", "--t-end", "1.3", "--workers", "1"]
-    + ["--roundtrips", "3"],
-}
 
 
 @pytest.fixture(scope="module")
 def started(request, tmp_path_factory):
-    """Start every benchmark that a selected test of this module needs, at once."""
+    """The folder the chain writes to: the controller's (xdist), or a chain of this
+    module's selected scripts started here."""
+    if os.environ.get(ENV):
+        yield os.environ[ENV]
+        return
     wanted = [
         name
         for name in TINY
@@ -70,40 +35,15 @@ def started(request, tmp_path_factory):
             for item in request.session.items
         )
     ]
-    procs = {}
-    for name in wanted:
-        out = tmp_path_factory.mktemp(name)
-        env = {
-            **os.environ,
-            "SMIBJAX_CACHE_DIR": str(ROOT / ".jax_cache" / f"benchmarks-{name}"),
-            "MPLBACKEND": "Agg",
-        }
-        log = open(out / "log.txt", "w")  # closed at the end of the module
-        p = subprocess.Popen(
-            [sys.executable, str(BENCH / f"{name}.py"), *TINY[name], "--out", str(out)],
-            cwd=ROOT,
-            env=env,
-            stdout=log,
-            stderr=subprocess.STDOUT,
-        )
-        procs[name] = (p, out, log)
-    yield procs
-    for p, _, log in procs.values():
-        if p.poll() is None:
-            p.kill()
-            p.wait()
-        log.close()
+    folder = tmp_path_factory.mktemp("benchmarks")
+    chain = Chain(folder, wanted).start()
+    yield folder
+    chain.stop()
 
 
 def finish(started, name):
     """Wait for the script; its JSON results (the output is printed on failure)."""
-    p, out, log = started[name]
-    try:
-        rc = p.wait(timeout=TIMEOUT)
-    except subprocess.TimeoutExpired:
-        p.kill()
-        rc = p.wait()
-    log.flush()
+    rc, out = wait(started, name, TIMEOUT * len(TINY))
     text = (out / "log.txt").read_text()
     print(text)
     assert rc == 0, f"{name}.py exited with {rc}:\n{text[-4000:]}"

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 import smibjax as sj
-from conftest import ROOT
+from conftest import ROOT, cli_env
 from smibjax.cli import main
 
 KEYS = [
@@ -119,7 +119,7 @@ def test_bad_gains_files(tmp_path, capsys):
 
 
 def test_command_line_process_has_no_traceback():
-    env = {**os.environ, "SMIBJAX_CACHE_DIR": str(ROOT / ".jax_cache")}
+    env = cli_env()
     p = subprocess.run(
         [sys.executable, "-m", "smibjax", "simulate", "--clear-time", "0.4"],
         capture_output=True,
@@ -264,7 +264,7 @@ def test_files_that_are_not_utf8_are_one_line(tmp_path, capsys, suffix):
 
 def test_process_errors_have_no_traceback(tmp_path):
     """A few of the probe's inputs, through a real process."""
-    env = {**os.environ, "SMIBJAX_CACHE_DIR": str(ROOT / ".jax_cache")}
+    env = cli_env()
     bad = tmp_path / "g.toml"
     bad.write_bytes(b"\xff\xfe")
     for argv in (

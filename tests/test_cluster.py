@@ -141,18 +141,18 @@ def test_bad_scheduler_address_is_one_line(tmp_path, capsys):
     assert "--workers 0 is not allowed" in capsys.readouterr().err
 
 
-def test_workers_end_to_end_finishes_an_interrupted_run(tmp_path, capsys):
+def test_workers_end_to_end_finishes_an_interrupted_run(reference, tmp_path, capsys):
     """`montecarlo --workers 2 --resume` (its own LocalCluster, from the command line)
     finishes a run whose last chunks were lost: only those are computed, the chunk
     files already there are kept as they are, and the rows equal the uninterrupted
-    in-process run's, line for line."""
+    in-process run's (SPEC's), line for line."""
     from smibjax.cli import main
 
     argv = ["montecarlo", "--n", "24", "--chunk", "4", "--t-end", "3"]
     argv += ["--set", "beta1=-1", "--set", "beta2=-1"]
-    whole, part = tmp_path / "whole", tmp_path / "part"
-    assert main([*argv, "--out", str(whole)]) == 0
+    part = tmp_path / "part"
     assert main([*argv, "--out", str(part)]) == 0
+    assert _csv(part) == reference  # the command's run is SPEC's
     kept = {k: (part / "chunks" / f"{k:06d}.npz").stat().st_mtime_ns for k in (0, 1)}
     for k in range(2, 6):  # "killed" after two chunks
         (part / "chunks" / f"{k:06d}.npz").unlink()
@@ -160,7 +160,7 @@ def test_workers_end_to_end_finishes_an_interrupted_run(tmp_path, capsys):
     capsys.readouterr()
     assert main([*argv, "--workers", "2", "--resume", "--out", str(part)]) == 0
     assert " of 24 (" in capsys.readouterr().out  # the summary of all 24 rows
-    assert _csv(part) == _csv(whole)
+    assert _csv(part) == reference
     for k, mtime in kept.items():
         assert (part / "chunks" / f"{k:06d}.npz").stat().st_mtime_ns == mtime
     sessions = __import__("json").loads((part / "run.json").read_text())["sessions"]

@@ -3,7 +3,6 @@ single runs, chunking that changes nothing, resume after kill -9, one-line error
 
 import json
 import math
-import os
 import re
 import signal
 import subprocess
@@ -15,7 +14,7 @@ import numpy as np
 import pytest
 
 import smibjax as sj
-from conftest import ROOT, STABLE
+from conftest import ROOT, STABLE, cli_env
 from smibjax.cct import critical_clearing_times
 from smibjax.cli import main
 from smibjax.cli.runs import read_rows, run_montecarlo
@@ -176,7 +175,7 @@ def test_kill_9_then_resume_matches_an_uninterrupted_run(reference_run, tmp_path
     """A real SIGKILL after the first chunk is on disk, then `--resume`: at most the
     chunk in flight is lost and the final files equal the uninterrupted run's."""
     ref_out, _, _ = reference_run
-    env = {**os.environ, "SMIBJAX_CACHE_DIR": str(ROOT / ".jax_cache")}
+    env = cli_env()
     out = tmp_path / "k"
     cmd = [sys.executable, "-m", "smibjax", "montecarlo", "--n", "10", "--chunk", "4"]
     cmd += ["--seed", "3", "--t-end", str(T_END), "--out", str(out)]

@@ -14,6 +14,10 @@ from tuning.driver import CHECKPOINT
 from tuning.optimize import main
 from tuning.resume import SESSIONS, SessionClock, first_difference, start_mode
 
+# one worker runs the tuner's tests: they share its compiled training step and
+# validation (in memory, and the command-line runs through the persistent cache)
+pytestmark = pytest.mark.xdist_group("tuner")
+
 
 def _tiny(tmp_path):
     cfg = tmp_path / "tiny.toml"

@@ -1,0 +1,125 @@
+"""The benchmark scripts' tiny runs, one after another in a background thread.
+
+Under pytest-xdist the chain runs in the controller process, which runs no tests: it
+starts at the beginning of the session (`conftest.pytest_sessionstart`), beside the
+workers, and the tests of tests/test_benchmarks.py (collected last) only wait for its
+results. Without xdist, the module's own fixture starts it. Every script uses the
+suite's persistent compilation cache, so a later script finds what an earlier one
+compiled (throughput and vs_scipy run the same engine at t_end 1.3 s and a batch of 4).
+
+A script's folder holds log.txt, its outputs, and `rc` (its exit status, written last).
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+BENCH = ROOT / "benchmarks"
+ENV = "SMIBJAX_BENCH_DIR"  # where the controller's chain writes (set for the workers)
+TIMEOUT = 600  # s, per script
+
+# script -> tiny command-line arguments, in the order they run
+TINY = {
+    "throughput": [
+        "--batches",
+        "4",
+        "--devices",
+        "1",
+        "2",
+        "--n-check",
+        "1",
+        "--t-end",
+        "1.3",  # every sampled fault (up to 1.0 s + 0.25 s) clears within the run
+        "--repeat",
+        "1",
+    ],
+    "vs_scipy": [
+        "--n-scipy",
+        "1",
+        "--batch",
+        "4",
+        "--devices",
+        "2",
+        "--t-end",
+        "1.3",  # throughput's horizon and batch: its compiled engine
+        "--repeat",
+        "1",
+    ],
+    "montecarlo": ["--n", "8", "--chunk", "4", "--t-end", "1.3"],
+    "cluster_scaling": ["--n", "8", "--chunk", "4", "--t-end", "1.3", "--workers", "1"]
+    + ["--roundtrips", "3"],
+    "stiff_solvers": ["--methods", "RK45", "Radau", "--t-end", "1.0"],
+    "compile": ["--cases", "simulate", "--repeat", "1", "--t-end", "0.8"],
+    "gradients": ["--batch", "1", "--t-end", "1.5", "--repeat", "1"],
+}
+
+
+class Chain:
+    """Runs `names` (keys of `TINY`) one at a time into `folder`/NAME/."""
+
+    def __init__(self, folder: Path, names):
+        self.folder, self.names = Path(folder), list(names)
+        self._stop = threading.Event()
+        self._lock = threading.Lock()
+        self._proc: subprocess.Popen | None = None
+        self._thread = threading.Thread(target=self._run, daemon=True)
+
+    def start(self) -> Chain:
+        self._thread.start()
+        return self
+
+    def _run(self) -> None:
+        env = {
+            **os.environ,
+            "SMIBJAX_CACHE_DIR": str(ROOT / ".jax_cache"),
+            "MPLBACKEND": "Agg",
+        }
+        for name in self.names:
+            out = self.folder / name
+            out.mkdir(parents=True, exist_ok=True)
+            with open(out / "log.txt", "w") as log:
+                with self._lock:
+                    if self._stop.is_set():
+                        return
+                    self._proc = subprocess.Popen(
+                        [sys.executable, str(BENCH / f"{name}.py"), *TINY[name]]
+                        + ["--out", str(out)],
+                        cwd=ROOT,
+                        env=env,
+                        stdout=log,
+                        stderr=subprocess.STDOUT,
+                    )
+                try:
+                    rc = self._proc.wait(timeout=TIMEOUT)
+                except subprocess.TimeoutExpired:
+                    self._proc.kill()
+                    rc = self._proc.wait()
+            tmp = out / "rc.tmp"
+            tmp.write_text(str(rc))
+            tmp.replace(out / "rc")
+
+    def stop(self) -> None:
+        """Kill the running script and start no other."""
+        with self._lock:
+            self._stop.set()
+            if self._proc is not None and self._proc.poll() is None:
+                self._proc.kill()
+                self._proc.wait()
+        self._thread.join(timeout=30)
+
+
+def wait(folder: Path, name: str, timeout: float) -> tuple[int, Path]:
+    """(exit status, folder) of script `name` once the chain has run it."""
+    out = Path(folder) / name
+    deadline = time.monotonic() + timeout
+    while not (out / "rc").is_file():
+        if time.monotonic() > deadline:
+            raise TimeoutError(f"{name}.py did not finish within {timeout:.0f} s")
+        time.sleep(0.2)
+    return int((out / "rc").read_text()), out
