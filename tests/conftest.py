@@ -48,11 +48,10 @@ def _whole_suite(config) -> bool:
     return False
 
 
-def pytest_sessionstart(session):
+def pytest_configure(config):
     """Under pytest-xdist, the controller (which runs no test) runs the benchmark
-    scripts' tiny runs in the background from the start (`bench_chain`); the workers
-    inherit where they write."""
-    config = session.config
+    scripts' tiny runs in the background from the start (`bench_chain`); the workers,
+    started after this hook, inherit where they write."""
     if hasattr(config, "workerinput") or not config.getoption("numprocesses", None):
         return
     if not _whole_suite(config):
@@ -66,8 +65,8 @@ def pytest_sessionstart(session):
     config._bench_chain = bench_chain.Chain(folder, bench_chain.TINY).start()
 
 
-def pytest_sessionfinish(session):
-    chain = getattr(session.config, "_bench_chain", None)
+def pytest_unconfigure(config):
+    chain = getattr(config, "_bench_chain", None)
     if chain is not None:
         import shutil
 

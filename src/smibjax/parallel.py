@@ -73,7 +73,11 @@ def device_map(fn, replicated, batched, devices=None):
     size = jax.tree_util.tree_leaves(batched)[0].shape[0]
     n = _slices(size, devices)
     if n == 1:
-        return fn(replicated, batched)
+        # committed to the first device like every other call's inputs: an executable
+        # is compiled per input placement, and a later call with committed inputs
+        # (e.g. the output of an earlier one) would compile the program again
+        d = devices[0]
+        return fn(jax.device_put(replicated, d), jax.device_put(batched, d))
     slices, size = split_batch(batched, n)
 
     def run(i):
@@ -119,7 +123,12 @@ def shard_batch(fn, devices=None):
         size = jax.tree_util.tree_leaves(batched)[0].shape[0]
         n = _slices(size, devices)
         if n == 1:
-            out = single(replicated, batched)
+            # committed, always: the tuner's first step gets fresh (uncommitted)
+            # parameters and every later step the previous step's (committed)
+            # output, and jit compiles one executable per placement (measured: the
+            # default run's second step compiled the whole program again, 20 s)
+            d = devices[0]
+            out = single(jax.device_put(replicated, d), jax.device_put(batched, d))
         else:
             jitted, whole, split = program(n)
             padded, _ = _pad(batched, n)
