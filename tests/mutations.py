@@ -278,6 +278,18 @@ MUTANTS = [
         "--resume recomputes every chunk (same rows: only the kept files and the "
         "count of computed scenarios tell)",
     ),
+    Mutant(
+        "one-slice-uncommitted",
+        "src/smibjax/parallel.py",
+        "            out = single(jax.device_put(replicated, d), jax.device_put(batched, d))",
+        "            out = single(replicated, batched)",
+        (
+            "tests/test_parallel.py::"
+            "test_a_one_slice_batch_compiles_once_wherever_its_inputs_live",
+        ),
+        "a one-slice batch runs on uncommitted inputs: the tuner's second step "
+        "compiles its program again",
+    ),
     # -- atomic writes (cli/files.py)-----------------------------------------------------------
     Mutant(
         "io-write-in-place",

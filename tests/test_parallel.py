@@ -107,3 +107,32 @@ def test_the_equinox_work_around_is_scoped():
         s = jax.ShapeDtypeStruct((2,), jnp.float64)
         assert patched({"a": s}) == {"a": jax.ShapeDtypeStruct((2,), jnp.float64)}
     assert _ad._strip_weak_dtype is original
+
+
+def test_a_one_slice_batch_compiles_once_wherever_its_inputs_live():
+    """Fresh (uncommitted) inputs and the committed output of an earlier call run the
+    same executable: a one-slice batch is committed to the first device. (Before: the
+    tuner's second step, fed the first step's output, compiled its whole program
+    again, 20 s.)"""
+    import jax.monitoring
+
+    d = jax.devices()[0]
+    a, x = jnp.asarray(0.5), jnp.array([0.1, 0.2])  # uncommitted
+    a_on, x_on = jax.device_put(a, d), jax.device_put(x, d)  # committed
+    compiles = []
+
+    def listen(event, duration, **kw):
+        if event.endswith("backend_compile_duration"):
+            compiles.append(duration)
+
+    for wrap in (shard_batch, lambda f: lambda r, b: device_map(jax.jit(f), r, b)):
+        fn = wrap(jax.vmap(lambda a, x: a * jnp.cos(x) + 0.123, in_axes=(None, 0)))
+        compiles.clear()
+        jax.monitoring.register_event_duration_secs_listener(listen)
+        try:
+            first = fn(a, x)
+            again = fn(a_on, x_on)
+        finally:
+            jax.monitoring.unregister_event_duration_listener(listen)
+        np.testing.assert_array_equal(first, again)
+        assert len(compiles) == 1, compiles

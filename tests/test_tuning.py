@@ -21,9 +21,11 @@ from tuning.train import draw_scenarios, make_train_step
 
 PAPER = gains_to_dict(sj.Gains())
 
-# one worker runs the tuner's tests: they share its compiled training step and
-# validation (in memory, and the command-line runs through the persistent cache)
-pytestmark = pytest.mark.xdist_group("tuner")
+# The tests that run the tiny default tuning (in this process and on the command
+# line) run on one worker: they share its compiled training step and validation (in
+# memory, and the command-line runs through the persistent cache), and the module's
+# uninterrupted run.
+TUNER = pytest.mark.xdist_group("tuner")
 
 
 # One tiny run shape for every tuner test (and tests/test_tuning_resume.py): batch 2,
@@ -249,6 +251,7 @@ def _strip_seconds(rows):
     return [r.rsplit(",", 1)[0] for r in rows]
 
 
+@TUNER
 def test_resume_trains_only_the_remaining_steps(tmp_path, monkeypatch, uninterrupted):
     """A resume loads the checkpoint: it trains the 2 steps left of 4 (counted at the
     training step itself), keeps the 2 rows written before the interruption byte for
@@ -295,6 +298,7 @@ def test_resume_trains_only_the_remaining_steps(tmp_path, monkeypatch, uninterru
     assert _strip_seconds(b_hist) == _strip_seconds(a_hist)
 
 
+@TUNER
 def test_end_to_end_run_writes_outputs_usable_by_simulate(uninterrupted, capsys):
     """The uninterrupted command-line run of the tiny default config: every output,
     the buildable case's options in its gains file, and gains that `simulate`
@@ -367,6 +371,7 @@ def test_avr_pss_tunes_its_own_parameters(tmp_path):
     assert "final estimates" not in report and "boundary layer" not in report
 
 
+@TUNER
 def test_kill_9_then_resume_matches_an_uninterrupted_run(tmp_path, uninterrupted):
     """A real SIGKILL mid-run, then `--resume`: same gains and history as the run that
     was never interrupted; the files written before the kill are kept."""
@@ -447,6 +452,7 @@ def test_cross_entropy_search_finds_the_minimum_of_a_known_score():
     assert scores[-1] < 0.01
 
 
+@TUNER
 def test_search_warm_start_end_to_end(tmp_path):
     """A tiny real search: it scores the start as its first candidate, the gradient
     steps start from its best, and the report shows it."""

@@ -14,8 +14,7 @@ from tuning.driver import CHECKPOINT
 from tuning.optimize import main
 from tuning.resume import SESSIONS, SessionClock, first_difference, start_mode
 
-# one worker runs the tuner's tests: they share its compiled training step and
-# validation (in memory, and the command-line runs through the persistent cache)
+# with the tuner's runs of tests/test_tuning.py: the same tiny validation program
 pytestmark = pytest.mark.xdist_group("tuner")
 
 
