@@ -111,9 +111,9 @@ def test_the_equinox_work_around_is_scoped():
 
 def test_a_one_slice_batch_compiles_once_wherever_its_inputs_live():
     """Fresh (uncommitted) inputs and the committed output of an earlier call run the
-    same executable: a one-slice batch is committed to the first device. (Before: the
-    tuner's second step, fed the first step's output, compiled its whole program
-    again, 20 s.)"""
+    same executable: a one-slice batch is committed to the first device. (Before: a
+    one-slice tuning run's second step, fed the first step's output, compiled its
+    whole program again, 20 s.)"""
     import jax.monitoring
 
     d = jax.devices()[0]

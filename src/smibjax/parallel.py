@@ -125,8 +125,9 @@ def shard_batch(fn, devices=None):
         if n == 1:
             # committed, always: the tuner's first step gets fresh (uncommitted)
             # parameters and every later step the previous step's (committed)
-            # output, and jit compiles one executable per placement (measured: the
-            # default run's second step compiled the whole program again, 20 s)
+            # output, and jit compiles one executable per placement (measured: a
+            # one-slice tuning run's second step compiled the whole program again,
+            # 20 s)
             d = devices[0]
             out = single(jax.device_put(replicated, d), jax.device_put(batched, d))
         else:
