@@ -1,7 +1,7 @@
 """The benchmark scripts' tiny runs, one after another in a background thread.
 
 Under pytest-xdist the chain runs in the controller process, which runs no tests: it
-starts at the beginning of the session (`conftest.pytest_sessionstart`), beside the
+starts at the beginning of the session (`conftest.pytest_configure`), beside the
 workers, and the tests of tests/test_benchmarks.py (collected last) only wait for its
 results. Without xdist, the module's own fixture starts it. Every script uses the
 suite's persistent compilation cache, so a later script finds what an earlier one

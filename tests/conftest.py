@@ -70,9 +70,11 @@ def pytest_unconfigure(config):
     if chain is not None:
         import shutil
 
+        import bench_chain
+
         chain.stop()
         shutil.rmtree(chain.folder, ignore_errors=True)
-        os.environ.pop("SMIBJAX_BENCH_DIR", None)
+        os.environ.pop(bench_chain.ENV, None)
 
 
 def pytest_collection_modifyitems(config, items):

@@ -28,24 +28,33 @@ PAPER = gains_to_dict(sj.Gains())
 TUNER = pytest.mark.xdist_group("tuner")
 
 
-# One tiny run shape for every tuner test (and tests/test_tuning_resume.py): batch 2,
-# validation on 2 scenarios after each step, 3 s horizons. The tests then share the
-# compiled training step and validation program (in this process, and through the
-# persistent cache in the command-line runs).
-TINY_TOML = (
-    "steps = {steps}\nbatch = 2\nseed = 3\n[validation]\nn = 2\nevery = 1\n"
-    "t_end = 3.0\n[train]\nt_end = 3.0\n"
-)
+# One tiny run shape for the tuner tests: batch 2, validation on 2 scenarios after each
+# step, 3 s horizons. The tests then share the compiled training step and validation
+# program (in this process, and through the persistent cache in the command-line
+# runs). `tiny_config` and `tiny_toml` are the same run, in process and as a file.
+TINY = {"steps": 4, "batch": 2, "seed": 3}
+TINY_VALIDATION = {"n": 2, "every": 1, "t_end": 3.0}
+TINY_T_END = 3.0
 
 
 def tiny_config(path=None, **over):
     cfg = load_config(path)
-    cfg.update(steps=4, batch=2, seed=3)
-    cfg["validation"].update(n=2, every=1, t_end=3.0)
-    cfg["train"].update(t_end=3.0)
+    cfg.update(TINY)
+    cfg["validation"].update(TINY_VALIDATION)
+    cfg["train"].update(t_end=TINY_T_END)
     cfg.update(over)
     check_config(cfg)
     return cfg
+
+
+def tiny_toml(steps: int) -> str:
+    """`tiny_config(steps=steps)` as a config file."""
+    v = TINY_VALIDATION
+    return (
+        f"steps = {steps}\nbatch = {TINY['batch']}\nseed = {TINY['seed']}\n"
+        f"[validation]\nn = {v['n']}\nevery = {v['every']}\nt_end = {v['t_end']}\n"
+        f"[train]\nt_end = {TINY_T_END}\n"
+    )
 
 
 def tuner_cli(cfgfile, *args):
@@ -68,7 +77,7 @@ def uninterrupted(tmp_path_factory):
 
     d = tmp_path_factory.mktemp("tuned")
     cfgfile = d / "tiny.toml"
-    cfgfile.write_text(TINY_TOML.format(steps=4))
+    cfgfile.write_text(tiny_toml(TINY["steps"]))
     out = d / "a"
     subprocess.run(
         tuner_cli(cfgfile, "--out", str(out)), check=True, cwd=ROOT, env=cli_env()

@@ -9,6 +9,7 @@ import time
 import pytest
 
 import smibjax as sj
+from test_tuning import tiny_toml
 from tuning.config import load_config
 from tuning.driver import CHECKPOINT
 from tuning.optimize import main
@@ -20,10 +21,7 @@ pytestmark = pytest.mark.xdist_group("tuner")
 
 def _tiny(tmp_path):
     cfg = tmp_path / "tiny.toml"
-    cfg.write_text(
-        "steps = 0\nbatch = 2\n[validation]\nn = 2\nevery = 1\nt_end = 3.0\n"
-        "[train]\nt_end = 3.0\n"
-    )
+    cfg.write_text(tiny_toml(0))
     return cfg
 
 
