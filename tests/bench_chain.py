@@ -13,6 +13,7 @@ A script's folder holds log.txt, its outputs, and `rc` (its exit status, written
 from __future__ import annotations
 
 import os
+import re
 import subprocess
 import sys
 import threading
@@ -75,10 +76,18 @@ class Chain:
         return self
 
     def _run(self) -> None:
+        # the scripts choose their own host devices (one per core, at least two): not
+        # the suite's one (conftest puts it in the environment)
+        flags = re.sub(
+            r"--xla_force_host_platform_device_count=\S+",
+            "",
+            os.environ.get("XLA_FLAGS", ""),
+        ).strip()
         env = {
             **os.environ,
             "SMIBJAX_CACHE_DIR": str(ROOT / ".jax_cache"),
             "MPLBACKEND": "Agg",
+            "XLA_FLAGS": flags,
         }
         for name in self.names:
             out = self.folder / name

@@ -108,6 +108,23 @@ def test_bad_input_is_one_line_and_nonzero(argv, needle, capsys):
     assert err.count("\n") == 1 and err.startswith("smibjax: error:")
 
 
+def test_a_command_run_in_process_keeps_the_suites_cache_and_devices(capsys):
+    """`main()` sets up its process (`configure_process`) even when a test calls it:
+    it must find the suite's settings in the environment (conftest), so that this
+    worker keeps compiling into .jax_cache/ (where the command-line processes of the
+    suite look) and never into the user's ~/.cache, and later processes get one host
+    device."""
+    import jax
+
+    from conftest import CACHE
+
+    assert main(["simulate", "--t-end", "x"]) == 2
+    capsys.readouterr()
+    assert jax.config.jax_compilation_cache_dir == CACHE
+    assert "--xla_force_host_platform_device_count=1" in os.environ["XLA_FLAGS"]
+    assert "multi_thread_eigen" not in os.environ["XLA_FLAGS"]
+
+
 def test_bad_gains_files(tmp_path, capsys):
     bad = tmp_path / "g.json"
     bad.write_text('{"beta1": -1, "zeta": 2}')

@@ -69,19 +69,16 @@ def tuner_cli(cfgfile, *args):
 
 @pytest.fixture(scope="module")
 def uninterrupted(tmp_path_factory):
-    """One uninterrupted 4-step command-line run of the tiny config (its folder), the
-    reference of the resume tests and the subject of the end-to-end test."""
-    import subprocess
-
-    from conftest import ROOT
-
+    """One uninterrupted 4-step run of the tiny config through the command's `main()`
+    in this process (its folder): the reference of the resume tests and the subject
+    of the end-to-end test. In this process, so that the in-process resume test
+    reuses its compiled training step and validation; the SIGKILL test's two
+    command-line processes are compared with it bit for bit."""
     d = tmp_path_factory.mktemp("tuned")
     cfgfile = d / "tiny.toml"
     cfgfile.write_text(tiny_toml(TINY["steps"]))
     out = d / "a"
-    subprocess.run(
-        tuner_cli(cfgfile, "--out", str(out)), check=True, cwd=ROOT, env=cli_env()
-    )
+    assert main(["--config", str(cfgfile), "--out", str(out), "--quiet"]) == 0
     return cfgfile, out
 
 
@@ -267,8 +264,8 @@ def test_resume_trains_only_the_remaining_steps(tmp_path, monkeypatch, uninterru
     """A resume loads the checkpoint: it trains the 2 steps left of 4 (counted at the
     training step itself), keeps the 2 rows written before the interruption byte for
     byte (their wall-clock `seconds` too: a restart would recompute them), and ends
-    where the uninterrupted command-line run ends (the run is deterministic, so that
-    alone could not tell a resume from a restart)."""
+    where the uninterrupted run of the command's `main()` ends (the run is
+    deterministic, so that alone could not tell a resume from a restart)."""
     import tuning.driver as optimize
     from tuning.driver import finish
 
@@ -311,9 +308,9 @@ def test_resume_trains_only_the_remaining_steps(tmp_path, monkeypatch, uninterru
 
 @TUNER
 def test_end_to_end_run_writes_outputs_usable_by_simulate(uninterrupted, capsys):
-    """The uninterrupted command-line run of the tiny default config: every output,
-    the buildable case's options in its gains file, and gains that `simulate`
-    reads."""
+    """The uninterrupted run of the tiny default config (the command's `main()`):
+    every output, the buildable case's options in its gains file, and gains that
+    `simulate` reads."""
     _, out = uninterrupted
     for name in (
         "gains.json",
