@@ -71,18 +71,19 @@ def pytest_configure(config):
 
     folder = Path(tempfile.mkdtemp(prefix="smibjax-benchmarks-"))
     os.environ[bench_chain.ENV] = str(folder)
-    config._bench_chain = bench_chain.Chain(folder, bench_chain.TINY).start()
+    config._bench_chains = bench_chain.start(folder, bench_chain.TINY)
 
 
 def pytest_unconfigure(config):
-    chain = getattr(config, "_bench_chain", None)
-    if chain is not None:
+    chains = getattr(config, "_bench_chains", None)
+    if chains:
         import shutil
 
         import bench_chain
 
-        chain.stop()
-        shutil.rmtree(chain.folder, ignore_errors=True)
+        for chain in chains:
+            chain.stop()
+        shutil.rmtree(chains[0].folder, ignore_errors=True)
         os.environ.pop(bench_chain.ENV, None)
 
 

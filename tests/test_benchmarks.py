@@ -2,7 +2,7 @@
 they cannot rot. No wall-clock assertions: exit status 0, the JSON's keys, finite
 positive numbers, and the accuracy figures the scripts check.
 
-The scripts run one after another in the background (`bench_chain`): under
+The scripts run one after another in two background chains (`bench_chain`): under
 pytest-xdist in the controller process from the start of the session, beside the
 tests; otherwise from this module's first test. Each uses the suite's persistent
 compilation cache, so a later script finds what an earlier one compiled.
@@ -14,7 +14,7 @@ import os
 
 import pytest
 
-from bench_chain import ENV, TIMEOUT, TINY, Chain, wait
+from bench_chain import ENV, TIMEOUT, TINY, start, wait
 
 # collected last (conftest.py): by then the chain has mostly run
 pytestmark = pytest.mark.xdist_group("benchmarks")
@@ -36,9 +36,10 @@ def started(request, tmp_path_factory):
         )
     ]
     folder = tmp_path_factory.mktemp("benchmarks")
-    chain = Chain(folder, wanted).start()
+    chains = start(folder, wanted)
     yield folder
-    chain.stop()
+    for chain in chains:
+        chain.stop()
 
 
 def finish(started, name):
