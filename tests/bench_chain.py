@@ -1,12 +1,13 @@
 """The benchmark scripts' tiny runs, one after another in two background threads
 (`LANES`).
 
-Under pytest-xdist the chains run in the controller process, which runs no tests: they
-start at the beginning of the session (`conftest.pytest_configure`), beside the
+Under pytest-xdist the chains run in the controller process, which runs no tests:
+they start at the beginning of the session (`conftest.pytest_configure`), beside the
 workers, and the tests of tests/test_benchmarks.py (collected last) only wait for
-their results. Without xdist, the module's own fixture starts them. Every script uses the
-suite's persistent compilation cache, so a later script finds what an earlier one
-compiled (throughput and vs_scipy run the same engine at t_end 1.3 s and a batch of 4).
+their results. Without xdist, the module's own fixture starts them. Every script uses
+the suite's persistent compilation cache, so a later script finds what an earlier one
+compiled (throughput and vs_scipy run the same engine at t_end 1.3 s and a batch of
+4).
 
 A script's folder holds log.txt, its outputs, and `rc` (its exit status, written last).
 """

@@ -10,7 +10,6 @@ import numpy as np
 import pytest
 
 import smibjax as sj
-from conftest import ROOT
 from smibjax.cli.runs import read_rows, run_montecarlo
 from smibjax.montecarlo import MonteCarloSpec
 
@@ -111,9 +110,6 @@ def test_chunk_keys_are_deterministic():
 
 def test_missing_extra(monkeypatch, tmp_path, capsys):
     monkeypatch.setitem(sys.modules, "distributed", None)  # import fails
-    # main() sets XLA_FLAGS and the compilation cache: keep this process's settings
-    monkeypatch.setenv("XLA_FLAGS", os.environ.get("XLA_FLAGS", ""))
-    monkeypatch.setenv("SMIBJAX_CACHE_DIR", str(ROOT / ".jax_cache"))
     msg = "--workers/--scheduler need the cluster extra: pip install 'smibjax[cluster]'"
     with pytest.raises(sj.ParameterError) as e:
         with dask_runner(workers=2):
