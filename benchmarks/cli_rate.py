@@ -2,7 +2,9 @@
 montecarlo --set beta1=-1 --set beta2=-1 ...` at n = --small and --large (default
 512 and 8192), the rate (large - small) / (t_large - t_small), which leaves out the
 process start and the compilation; for AFTSC and ASC, with the exact law and with each
---phi-layer W (AFTSC only: alpha = 1 is unaffected by the layer), all in one run, the
+--phi-layer W (AFTSC only: alpha = 1 is unaffected by the layer) and ASC with each
+--chunks C (--small must be at least the largest C, so that both n run the same
+program), all in one run, the
 variants alternated (each n, each variant in turn, --repeat rounds) so that contention
 on the machine affects them alike. Beside it, the SciPy loop of benchmarks/vs_scipy.py
 (LSODA, one scenario after another, tests/reference.py's model) on the first --n-scipy
@@ -10,7 +12,7 @@ scenarios of the same Monte Carlo, in the same run. Writes
 benchmarks/results/cli_rate.json.
 
     python benchmarks/cli_rate.py [--small 512] [--large 8192] [--widths 0.01]
-        [--order] [--repeat 1] [--n-scipy 4] [--keep DIR] [--tag NAME]
+        [--chunks C ...] [--order] [--repeat 1] [--n-scipy 4] [--keep DIR] [--tag NAME]
 """
 
 from __future__ import annotations
@@ -73,6 +75,9 @@ def main() -> None:
     ap.add_argument("--small", type=int, default=512)
     ap.add_argument("--large", type=int, default=8192)
     ap.add_argument("--widths", type=float, nargs="*", default=[0.01])
+    ap.add_argument(
+        "--chunks", type=int, nargs="*", default=[], help="ASC at these --chunk sizes"
+    )
     ap.add_argument("--repeat", type=int, default=1)
     ap.add_argument(
         "--order",
@@ -88,6 +93,10 @@ def main() -> None:
     variants = {"aftsc exact": ("aftsc", []), "asc exact": ("asc", [])}
     for w in args.widths:
         variants[f"aftsc W={w:g}"] = ("aftsc", ["--phi-layer", str(w)])
+    if args.chunks and max(args.chunks) > args.small:
+        ap.error(f"--small {args.small} is below --chunks {max(args.chunks)}")
+    for c in args.chunks:
+        variants[f"asc chunk={c}"] = ("asc", ["--chunk", str(c)])
     if args.order:  # each variant again with --order reclose-delay
         for v, (c, extra) in list(variants.items()):
             variants[f"{v} ordered"] = (c, [*extra, "--order", "reclose-delay"])

@@ -150,3 +150,37 @@ def wait(folder: Path, name: str, timeout: float) -> tuple[int, Path]:
             raise TimeoutError(f"{name}.py did not finish within {timeout:.0f} s")
         time.sleep(0.2)
     return int((out / "rc").read_text()), out
+
+
+def _time_each(cache: str) -> None:
+    """Run the tiny scripts one after another (not side by side) with the compilation
+    cache in `cache` and print each one's wall and CPU seconds (the README's
+    figures: `python tests/bench_chain.py /tmp/empty-cache`)."""
+    import resource
+    import tempfile
+
+    env = {**os.environ, "SMIBJAX_CACHE_DIR": cache, "MPLBACKEND": "Agg"}
+    env.pop("XLA_FLAGS", None)
+    with tempfile.TemporaryDirectory(prefix="smibjax-bench-time-") as tmp:
+        for name in [n for lane in LANES for n in lane]:
+            r0, t0 = resource.getrusage(resource.RUSAGE_CHILDREN), time.monotonic()
+            cmd = [sys.executable, str(BENCH / f"{name}.py"), *TINY[name]]
+            rc = subprocess.run(
+                [*cmd, "--out", str(Path(tmp) / name)],
+                cwd=ROOT,
+                env=env,
+                capture_output=True,
+            ).returncode
+            r1 = resource.getrusage(resource.RUSAGE_CHILDREN)
+            cpu = r1.ru_utime - r0.ru_utime + r1.ru_stime - r0.ru_stime
+            print(
+                f"{name:16} rc {rc}  wall {time.monotonic() - t0:6.1f} s  "
+                f"cpu {cpu:6.1f} s",
+                flush=True,
+            )
+
+
+if __name__ == "__main__":
+    if len(sys.argv) != 2:
+        sys.exit("usage: python tests/bench_chain.py CACHE_DIR")
+    _time_each(sys.argv[1])
