@@ -8,11 +8,14 @@ program), all in one run, the
 variants alternated (each n, each variant in turn, --repeat rounds) so that contention
 on the machine affects them alike. Beside it, the SciPy loop of benchmarks/vs_scipy.py
 (LSODA, one scenario after another, tests/reference.py's model) on the first --n-scipy
-scenarios of the same Monte Carlo, in the same run. Writes
-benchmarks/results/cli_rate.json.
+scenarios of the same Monte Carlo, in the same run. With --baseline REV every variant
+runs a second time with the code of git revision REV (a temporary worktree on
+PYTHONPATH), alternated with the current code's, and the table gives each variant's
+rate over its own rate at REV ("x base"). Writes benchmarks/results/cli_rate.json.
 
     python benchmarks/cli_rate.py [--small 512] [--large 8192] [--widths 0.01]
-        [--chunks C ...] [--order] [--repeat 1] [--n-scipy 4] [--keep DIR] [--tag NAME]
+        [--chunks C ...] [--order] [--baseline REV] [--repeat 1] [--n-scipy 4]
+        [--keep DIR] [--tag NAME]
 """
 
 from __future__ import annotations
@@ -35,13 +38,17 @@ import numpy as np
 ROOT = HERE.parent
 
 
-def cli(n: int, controller: str, extra: list[str], out: Path, keep=None) -> float:
-    """Seconds of one `python -m smibjax montecarlo` process (spawn to exit)."""
+def cli(
+    n: int, controller: str, extra: list[str], out: Path, keep=None, root=ROOT
+) -> float:
+    """Seconds of one `python -m smibjax montecarlo` process (spawn to exit), with
+    the code of the checkout at `root`."""
     argv = [sys.executable, "-m", "smibjax", "montecarlo", "--n", str(n)]
     argv += ["--controller", controller, "--set", "beta1=-1", "--set", "beta2=-1"]
     argv += [*extra, "--out", str(out)]
+    env = dict(os.environ, PYTHONPATH=str(Path(root) / "src"))
     t0 = time.perf_counter()
-    subprocess.run(argv, check=True, cwd=ROOT, capture_output=True)
+    subprocess.run(argv, check=True, cwd=root, capture_output=True, env=env)
     seconds = time.perf_counter() - t0
     if keep is not None:
         keep.parent.mkdir(parents=True, exist_ok=True)
@@ -85,6 +92,11 @@ def main() -> None:
         help="also each with --order reclose-delay (the CLI of commit 09054a1 only: "
         "the option was measured and removed, benchmarks/README.md)",
     )
+    ap.add_argument(
+        "--baseline",
+        metavar="REV",
+        help="also run every variant with the code of this git revision",
+    )
     ap.add_argument("--n-scipy", type=int, default=4)
     ap.add_argument("--out", default=str(HERE / "results"))
     ap.add_argument("--tag", default="")
@@ -101,10 +113,22 @@ def main() -> None:
         for v, (c, extra) in list(variants.items()):
             variants[f"{v} ordered"] = (c, [*extra, "--order", "reclose-delay"])
     tmp = Path(tempfile.mkdtemp(prefix="smibjax-cli-rate-"))
+    roots = {v: ROOT for v in variants}
+    if args.baseline:
+        base_root = tmp / "baseline"
+        subprocess.run(
+            ["git", "worktree", "add", "--detach", str(base_root), args.baseline],
+            check=True,
+            cwd=ROOT,
+            capture_output=True,
+        )
+        for v, spec in list(variants.items()):
+            variants[f"{v} @{args.baseline}"] = spec
+            roots[f"{v} @{args.baseline}"] = base_root
     times = {v: {args.small: [], args.large: []} for v in variants}
     try:
-        for c, extra in variants.values():  # warm the compilation cache
-            cli(args.small, c, extra, tmp / "warm")
+        for v, (c, extra) in variants.items():  # warm the compilation cache
+            cli(args.small, c, extra, tmp / "warm", root=roots[v])
         for r in range(args.repeat):
             for n in (args.small, args.large):
                 order = list(variants)
@@ -114,10 +138,16 @@ def main() -> None:
                     if args.keep and n == args.large:
                         name = v.replace(" ", "_").replace("=", "")
                         keep = Path(args.keep) / f"{name}.csv"
-                    s = cli(n, c, extra, tmp / "run", keep)
+                    s = cli(n, c, extra, tmp / "run", keep, roots[v])
                     times[v][n].append(s)
                     print(f"  {v} n={n}: {s:.1f} s", flush=True)
     finally:
+        if args.baseline:
+            subprocess.run(
+                ["git", "worktree", "remove", "--force", str(tmp / "baseline")],
+                cwd=ROOT,
+                capture_output=True,
+            )
         shutil.rmtree(tmp, ignore_errors=True)
     scipy = {}
     for c in ("aftsc", "asc"):
@@ -137,18 +167,27 @@ def main() -> None:
             "marginal_scenarios_per_s": float(rate),
             "over_scipy_lsoda": float(rate / scipy[c]),
         }
-    for r in rates.values():
-        base = rates[f"{r['controller']} exact"]["marginal_scenarios_per_s"]
-        r["over_exact"] = r["marginal_scenarios_per_s"] / base
+    at = f" @{args.baseline}" if args.baseline else ""
+    for v, r in rates.items():
+        exact = f"{r['controller']} exact" + (at if v.endswith(at) and at else "")
+        r["over_exact"] = (
+            r["marginal_scenarios_per_s"] / (rates[exact]["marginal_scenarios_per_s"])
+        )
+        if args.baseline and not v.endswith(at):
+            r["over_baseline"] = (
+                r["marginal_scenarios_per_s"]
+                / (rates[v + at]["marginal_scenarios_per_s"])
+            )
     print(
-        f"\n{'variant':24} {'t_small':>8} {'t_large':>8} {'rate/s':>8} "
-        f"{'x exact':>8} {'x scipy':>8}"
+        f"\n{'variant':32} {'t_small':>8} {'t_large':>8} {'rate/s':>8} "
+        f"{'x exact':>8} {'x scipy':>8} {'x base':>7}"
     )
     for v, r in rates.items():
+        base = f"{r['over_baseline']:7.2f}" if "over_baseline" in r else ""
         print(
-            f"{v:24} {r['seconds_small']:8.1f} {r['seconds_large']:8.1f} "
+            f"{v:32} {r['seconds_small']:8.1f} {r['seconds_large']:8.1f} "
             f"{r['marginal_scenarios_per_s']:8.0f} {r['over_exact']:8.2f} "
-            f"{r['over_scipy_lsoda']:8.0f}"
+            f"{r['over_scipy_lsoda']:8.0f} {base:>7}"
         )
     from _common import result_name
     from _results import write_results
@@ -160,6 +199,7 @@ def main() -> None:
             "command": "python -m smibjax montecarlo --n N --controller C --set "
             "beta1=-1 --set beta2=-1 [--phi-layer W] (defaults otherwise: seed 0, "
             "chunk 256, rtol 1e-6, atol 1e-8, paper plant, oracle)",
+            "baseline": args.baseline,
             "small": args.small,
             "large": args.large,
             "repeat": args.repeat,

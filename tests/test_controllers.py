@@ -108,8 +108,8 @@ class _StateAsCommand(AvrPss):
     """The AVR + PSS as it reported before issue 14's fix: the non-windup lags'
     states as the commanded inputs (never beyond the limits)."""
 
-    def __call__(self, t, z, s, stage, plant, op):
-        out = super().__call__(t, z, s, stage, plant, op)
+    def __call__(self, t, z, s, stage, plant, op, trig=None):
+        out = super().__call__(t, z, s, stage, plant, op, trig)
         return out._replace(u_f=s[0], u_r=s[4])
 
 

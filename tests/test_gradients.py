@@ -147,15 +147,18 @@ def test_state_sensitivity_to_clearing_time_across_reclosure(solver):
 def test_aftsc_adaptive_gradients_are_as_documented():
     """AFTSC gradients on the adaptive solver at simulate's default tolerance, pinned
     as documented (README, "Numerics"): on this loss they agree with central
-    differences to 1% since 2026-11-30 (-0.00807 against -0.00805). Before the
+    differences to 1% since 2026-11-30 (-0.00807 against -0.00806). Before the
     controller interface landed the same test measured -0.0028 against -0.0080; the
     cause of the change was not isolated, so this test keeps watch both ways: a
-    return to the old disagreement fails it."""
+    return to the old disagreement fails it. The difference step is 1e-3: at 1e-4
+    the adaptive steps' rounding moves the quotient by 1-3% (-0.008055 before and
+    -0.007949 after the field's shared sin/cos, 2026-12-01, the AD value -0.00807
+    both times), at 1e-3 and 3e-4 by under 0.2%."""
     p = params("aftsc")
     w = weights(squared=UNIFORM)
     _, grad = value_and_grad(p, w, "adaptive")
     ad = float(grad["gains"].beta1)
-    fd = central_difference(p, "beta1", w, "adaptive", 1e-4)
+    fd = central_difference(p, "beta1", w, "adaptive", 1e-3)
     assert abs(ad - fd) < 0.01 * abs(fd)
 
 

@@ -104,7 +104,15 @@ def test_default_training_gradient_under_limits_matches_finite_differences():
     4 s horizon, where the loss is smooth at this point (central differences converge
     for h = 3e-3 ... 1e-4). On a 3 s horizon the same batch sits on a kink of the
     chatter term (one-sided differences 194 and 124 at h = 1e-4; AD gives the one
-    from above, 189): README, testing section."""
+    from above, 189): README, testing section.
+
+    The differences use h = 1e-3 and each component must agree to 5% of the
+    gradient's largest. At h <= 3e-4 the adaptive steps' rounding moves a quotient
+    by up to about 0.02 (d/d T1 at h = 3e-4, 1e-4, 3e-5: 0.207, 0.187, 0.203 before
+    the field's shared sin/cos of 2026-12-01, 0.190, 0.191, 0.177 after), which is
+    under 2% of d/d beta1 but 10% of the smaller d/d T1; at h = 1e-3 both builds
+    agree to 1% (beta1 1.0875 and 1.0877, T1 0.1921 and 0.1917, beta2 0.1569 and
+    0.1584), and the AD values are 1.073-1.081, 0.196-0.201 and 0.157."""
     cfg = tiny_config()
     cfg["train"].update(t_end=4.0)
     _, _, setup, dist, _ = build(cfg)
@@ -121,12 +129,13 @@ def test_default_training_gradient_under_limits_matches_finite_differences():
     assert float(np.mean(np.asarray(terms["saturation"]))) >= 0.0
     g = {k: float(v) for k, v in grad.items()}
     big = sorted(g, key=lambda k: -abs(g[k]))[:3]
-    h = 1e-4
+    scale = abs(g[big[0]])
+    h = 1e-3
     for name in big:
         lp = float(step({**raw, name: raw[name] + h}, faults)[0])
         lm = float(step({**raw, name: raw[name] - h}, faults)[0])
         fd = (lp - lm) / (2 * h)
-        assert g[name] == pytest.approx(fd, rel=0.05), (name, g[name], fd)
+        assert abs(g[name] - fd) <= 0.05 * scale, (name, g[name], fd)
 
 
 def test_training_path_stays_close_to_the_validation_solver_on_a_saturated_run():

@@ -26,6 +26,7 @@ from .plant import (
     apply_limits,
     equilibrium_state,
     plant_vector_field,
+    sincos,
 )
 
 __all__ = [
@@ -162,9 +163,10 @@ def closed_loop_vector_field(
     safe = jnp.where(ok, y, loop.safe_state)
     z, s = safe[:4], safe[4 : loop.n_dynamic]
     stage = loop.stage(t)
-    out = loop.controller(t, z, s, stage, loop.plant, loop.op)
+    trig = sincos(z[0])  # once, for the controller and the plant
+    out = loop.controller(t, z, s, stage, loop.plant, loop.op, trig)
     u_f, u_r = apply_limits(out.u_f, out.u_r, loop.plant, loop.input_smoothing)
-    dz = plant_vector_field(z, u_f, u_r, stage, loop.plant)
+    dz = plant_vector_field(z, u_f, u_r, stage, loop.plant, trig)
     dy = jnp.concatenate([dz, out.d_internal, jnp.stack([u_f**2, u_r**2])])
     return jnp.where(ok, dy, 0.0)
 

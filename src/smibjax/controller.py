@@ -3,10 +3,13 @@
 One control law covers both controllers of the paper: alpha < 1 is the adaptive
 finite-time synergetic controller (AFTSC, eqs. 21-22), alpha = 1 the adaptive synergetic
 baseline (ASC, eqs. 36-37). The controller sees the measured plant state z through its
-*nominal* (pre-fault) network model; f and g of the affine model dx/dt = f + g u are
-obtained by `jax.jvp` of the coordinate map z -> x along the nominal plant vector field,
-so controller and plant cannot disagree. `drift_and_gain_closed_form` is MODEL.md's
-closed form, kept for the tests.
+*nominal* (pre-fault) network model. The law evaluates f and g of the affine model
+dx/dt = f + g u in MODEL.md's closed forms (`drift_and_gain_closed_form`), with one sin
+and one cos of the rotor angle (`smibjax.plant.sincos`): about half the cost of a
+Monte Carlo run was XLA evaluating them again in every fused consumer. `drift_and_gain`
+derives f and g by `jax.jvp` of the coordinate map z -> x along the nominal plant
+vector field, and the tests hold the closed forms to it (1e-12 over random states and
+plants), so controller and plant cannot disagree unnoticed.
 """
 
 from __future__ import annotations
@@ -21,7 +24,7 @@ from jaxtyping import Array, Float
 from ._validate import is_concrete
 from .network import prefault_stage
 from .parameters import Gains, OperatingPoint, Plant
-from .plant import plant_vector_field
+from .plant import Trig, plant_vector_field
 
 __all__ = [
     "spow",
@@ -113,14 +116,45 @@ def _spow_jvp(primals, tangents):
     return out, dy * ty + da * ta
 
 
-def paper_coordinates(z: Float[Array, 4], plant: Plant) -> Float[Array, 4]:
+def _affine_model(
+    z: Float[Array, 4], plant: Plant, trig: Trig | None = None
+) -> tuple[Float[Array, 4], Float[Array, 2], Float[Array, "2 2"]]:
+    """(x, (f3, f4), g): the paper coordinates and MODEL.md's closed forms of the
+    affine model, with sin and cos of delta evaluated once (or taken from `trig`)
+    and x2 cot(x1) x3 written as x2 E V cos(x1) / Xs (no tangent, no division by
+    sin x1)."""
+    p = plant
+    delta, domega, E, B = z[0], z[1], z[2], z[3]
+    sin_d, cos_d = (jnp.sin(delta), jnp.cos(delta)) if trig is None else trig
+    x2n = prefault_stage(p).X2
+    xs = p.X1 + x2n
+    xds = p.Xd + p.XT + x2n
+    g31 = p.V * sin_d / xs
+    pe = E * g31
+    # f3 = (-a + x2 cot x1) x3 + c V^2 sin(2 x1) / (2 Xs)
+    f3 = p.V * cos_d / xs * (E * domega + (p.Xd - p.Xdp) * p.V * sin_d / (xs * p.T0))
+    f3 = f3 - xds / (xs * p.T0) * pe
+    inv_den = 1 / (xs - p.X1 * x2n * B)
+    mt = xs * inv_den - 1
+    g42 = pe * p.X1 * x2n * xs * inv_den * inv_den  # -Nt
+    f4 = mt * f3 - g42 * (B - p.B0) / p.Tr
+    x = jnp.stack([delta, domega, pe, mt * pe])
+    g = jnp.stack([jnp.stack([g31, jnp.zeros_like(g31)]), jnp.stack([mt * g31, g42])])
+    return x, jnp.stack([f3, f4]), g
+
+
+def paper_coordinates(
+    z: Float[Array, 4], plant: Plant, trig: Trig | None = None
+) -> Float[Array, 4]:
     """x = (delta, domega, Pe, Psvc) of the measured state z = (delta, domega, E, B)
     on the nominal network (X2 = XL, Bf = 0):
-    Pe = E V sin(delta)/Xs and Psvc = Mt Pe with Mt = Xs/(Xs - X1 X2 B) - 1."""
+    Pe = E V sin(delta)/Xs and Psvc = Mt Pe with Mt = Xs/(Xs - X1 X2 B) - 1.
+    `trig`: (sin delta, cos delta) if already computed (`smibjax.plant.sincos`)."""
     delta, domega, E, B = z[0], z[1], z[2], z[3]
+    sin_d = jnp.sin(delta) if trig is None else trig[0]
     x2n = prefault_stage(plant).X2
     xs = plant.X1 + x2n
-    pe = E * plant.V * jnp.sin(delta) / xs
+    pe = E * plant.V * sin_d / xs
     mt = xs / (xs - plant.X1 * x2n * B) - 1
     return jnp.stack([delta, domega, pe, mt * pe])
 
@@ -130,7 +164,8 @@ def drift_and_gain(
 ) -> tuple[Float[Array, 2], Float[Array, "2 2"]]:
     """(f3, f4) and g = [[g31, 0], [g41, g42]] of dx/dt = f(x) + g(x) (u_f/T0, u_r/Tr),
     by `jax.jvp` of `paper_coordinates` along the nominal plant vector field (u = 0),
-    and along the unit input directions dE/dt = 1 and dB/dt = 1."""
+    and along the unit input directions dE/dt = 1 and dB/dt = 1: the reference the
+    control law's closed forms (`drift_and_gain_closed_form`) are tested against."""
     nominal = prefault_stage(plant)
     zero = jnp.zeros_like(z[0])
     drift = plant_vector_field(z, zero, zero, nominal, plant)
@@ -145,26 +180,14 @@ def drift_and_gain(
 
 
 def drift_and_gain_closed_form(
-    z: Float[Array, 4], plant: Plant
+    z: Float[Array, 4], plant: Plant, trig: Trig | None = None
 ) -> tuple[Float[Array, 2], Float[Array, "2 2"]]:
-    """MODEL.md's closed forms of (f3, f4) and g (errata applied)."""
-    p = plant
-    x2n = prefault_stage(p).X2
-    xs = p.X1 + x2n
-    xds = p.Xd + p.XT + x2n
-    a = xds / (xs * p.T0)
-    c = (p.Xd - p.Xdp) / (xs * p.T0)
-    x = paper_coordinates(z, p)
-    x1, x2, x3 = x[0], x[1], x[2]
-    B = z[3]
-    f3 = (-a + x2 / jnp.tan(x1)) * x3 + c * p.V**2 * jnp.sin(2 * x1) / (2 * xs)
-    g31 = p.V * jnp.sin(x1) / xs
-    den = xs - p.X1 * x2n * B
-    mt = xs / den - 1
-    nt = -x3 * p.X1 * x2n * xs / den**2
-    f4 = mt * f3 + nt * (B - p.B0) / p.Tr
-    g = jnp.array([[g31, 0.0], [mt * g31, -nt]])
-    return jnp.stack([f3, f4]), g
+    """MODEL.md's closed forms of (f3, f4) and g (errata applied), the ones the
+    control law evaluates: f3 = (-a + x2 cot x1) x3 + c V^2 sin(2 x1)/(2 Xs),
+    g31 = V sin(x1)/Xs, f4 = Mt f3 + Nt (B - B0)/Tr, g41 = Mt g31, g42 = -Nt.
+    `trig`: (sin delta, cos delta) if already computed (`smibjax.plant.sincos`)."""
+    _, f, g = _affine_model(z, plant, trig)
+    return f, g
 
 
 class ControlOutput(NamedTuple):
@@ -195,6 +218,7 @@ def control_law(
     plant: Plant,
     op: OperatingPoint,
     layer: float = 0.0,
+    trig: Trig | None = None,
 ) -> ControlOutput:
     """The synergetic control law, eq. (21) (eq. (36) for alpha = 1):
 
@@ -206,9 +230,10 @@ def control_law(
     macro-variables (MODEL.md section 2) phi_i = c_i e1 + e2 + b_i e_(i+2) and the
     x2 of each law becomes c_i x2 (c1 = c2 = 1: the paper, the default). `layer` > 0:
     the boundary-layer form of the evolution law (see `evolution`; 0: exact).
+    f and g are the closed forms (`drift_and_gain_closed_form`); `trig`: (sin delta,
+    cos delta) if already computed (`smibjax.plant.sincos`).
     """
-    x = paper_coordinates(z, plant)
-    f, g = drift_and_gain(z, plant)
+    x, f, g = _affine_model(z, plant, trig)
     e1 = x[0] - op.delta_e
     e2 = x[1]
     e3 = x[2] - op.Pm_ref

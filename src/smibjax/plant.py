@@ -15,6 +15,8 @@ from .network import Stage, prefault_stage
 from .parameters import OperatingPoint, Plant
 
 __all__ = [
+    "Trig",
+    "sincos",
     "effective_reactance",
     "electrical_power",
     "terminal_voltage",
@@ -26,6 +28,43 @@ __all__ = [
 
 Scalar = Float[Array, ""]
 State = Float[Array, "4"]
+# (sin delta, cos delta) of the rotor angle, computed once per evaluation (`sincos`)
+Trig = tuple[Scalar, Scalar]
+
+
+@jax.custom_jvp
+def sincos(delta: Scalar) -> Trig:
+    """(sin delta, cos delta), computed once and kept for every consumer.
+
+    A closed-loop field evaluation needs sin and cos of the rotor angle in the
+    controller's coordinate map and drift and in the plant. Written where each is
+    used, XLA's CPU fusion evaluated them again inside every fused consumer: five
+    float64 sines and three cosines per evaluation, about half the cost of a Monte
+    Carlo run (README "Numerics"). Here they leave a reduction (sin + 0 delta: exact
+    for finite delta; the closed loop only evaluates finite states), which XLA
+    computes once and does not copy into its consumers (`lax.optimization_barrier` does
+    not do this on CPU: it is removed before fusion).
+    `tests/test_controller.py::test_the_field_computes_one_sine_and_one_cosine` counts
+    them in the compiled field. Differentiable (its derivative reuses the two values)
+    and vmappable; works for any shape of `delta`.
+    """
+    zero = 0 * delta
+    pair = jnp.stack(
+        [jnp.stack([jnp.sin(delta), zero]), jnp.stack([jnp.cos(delta), zero])]
+    )
+    kept = jnp.sum(pair, axis=1)
+    return kept[0], kept[1]
+
+
+@sincos.defjvp
+def _sincos_jvp(primals, tangents):
+    (delta,), (t,) = primals, tangents
+    s, c = sincos(delta)
+    return (s, c), (c * t, -s * t)
+
+
+def _trig(delta: Scalar, trig: Trig | None) -> Trig:
+    return (jnp.sin(delta), jnp.cos(delta)) if trig is None else trig
 
 
 def effective_reactance(B: Scalar, stage: Stage, plant: Plant) -> Scalar:
@@ -35,19 +74,33 @@ def effective_reactance(B: Scalar, stage: Stage, plant: Plant) -> Scalar:
 
 
 def electrical_power(
-    delta: Scalar, E: Scalar, B: Scalar, stage: Stage, plant: Plant
+    delta: Scalar,
+    E: Scalar,
+    B: Scalar,
+    stage: Stage,
+    plant: Plant,
+    trig: Trig | None = None,
 ) -> Scalar:
-    """Total electrical power P = E V sin(delta) / (Xs - X1 X2 (B + Bf)) (pu)."""
-    return E * plant.V * jnp.sin(delta) / effective_reactance(B, stage, plant)
+    """Total electrical power P = E V sin(delta) / (Xs - X1 X2 (B + Bf)) (pu).
+    `trig`: (sin delta, cos delta) if already computed (`sincos`)."""
+    sin_d = jnp.sin(delta) if trig is None else trig[0]
+    return E * plant.V * sin_d / effective_reactance(B, stage, plant)
 
 
 def terminal_voltage(
-    delta: Scalar, E: Scalar, B: Scalar, stage: Stage, plant: Plant
+    delta: Scalar,
+    E: Scalar,
+    B: Scalar,
+    stage: Stage,
+    plant: Plant,
+    trig: Trig | None = None,
 ) -> Scalar:
     """SVC-bus voltage magnitude Vt (pu), from the phasor solution of the bus:
-    sqrt((X2 E)^2 + (X1 V)^2 + 2 X1 X2 E V cos delta) / (Xs - X1 X2 (B + Bf))."""
+    sqrt((X2 E)^2 + (X1 V)^2 + 2 X1 X2 E V cos delta) / (Xs - X1 X2 (B + Bf)).
+    `trig`: (sin delta, cos delta) if already computed (`sincos`)."""
     x1, x2, v = plant.X1, stage.X2, plant.V
-    num = (x2 * E) ** 2 + (x1 * v) ** 2 + 2 * x1 * x2 * E * v * jnp.cos(delta)
+    cos_d = trig[1] if trig is not None else jnp.cos(delta)
+    num = (x2 * E) ** 2 + (x1 * v) ** 2 + 2 * x1 * x2 * E * v * cos_d
     return jnp.sqrt(jnp.maximum(num, 0.0)) / effective_reactance(B, stage, plant)
 
 
@@ -80,7 +133,12 @@ def apply_limits(
 
 
 def plant_vector_field(
-    z: State, u_f: Scalar, u_r: Scalar, stage: Stage, plant: Plant
+    z: State,
+    u_f: Scalar,
+    u_r: Scalar,
+    stage: Stage,
+    plant: Plant,
+    trig: Trig | None = None,
 ) -> State:
     """dz/dt of the plant on network `stage` (swing equation, flux decay, SVC lag):
 
@@ -88,16 +146,18 @@ def plant_vector_field(
         d domega/dt = (Pm - D domega - P) / M
         dE/dt       = -Xds/(Xs T0) E + (Xd - X'd)/(Xs T0) V cos(delta) + u_f/T0
         dB/dt       = (-(B - B0) + u_r) / Tr
-    with Xs = X1 + X2 and Xds = Xd + XT + X2 of the stage.
+    with Xs = X1 + X2 and Xds = Xd + XT + X2 of the stage. `trig`: (sin delta,
+    cos delta) if already computed (`sincos`).
     """
     delta, domega, E, B = z[0], z[1], z[2], z[3]
     p = plant
+    trig = _trig(delta, trig)
     xs = p.X1 + stage.X2
     xds = p.Xd + p.XT + stage.X2
-    pe = electrical_power(delta, E, B, stage, p)
+    pe = electrical_power(delta, E, B, stage, p, trig)
     d_delta = domega
     d_omega = (p.Pm - p.D * domega - pe) / p.M
-    d_e = (-xds * E + (p.Xd - p.Xdp) * p.V * jnp.cos(delta)) / (xs * p.T0) + u_f / p.T0
+    d_e = (-xds * E + (p.Xd - p.Xdp) * p.V * trig[1]) / (xs * p.T0) + u_f / p.T0
     d_b = (-(B - p.B0) + u_r) / p.Tr
     return jnp.stack([d_delta, d_omega, d_e, d_b])
 

@@ -63,7 +63,7 @@ from .parameters import (
     ParameterError,
     Plant,
 )
-from .plant import apply_limits, equilibrium_state, terminal_voltage
+from .plant import apply_limits, equilibrium_state, sincos, terminal_voltage
 
 __all__ = ["Trajectory", "simulate", "is_stable", "DEFAULT_DELTA_BAND"]
 
@@ -261,9 +261,10 @@ def _simulate(
     def observe(t, y):
         z = y[:4]
         stage = stage_at(t, fault, plant)
-        out = controller(t, z, y[4:n_dyn], stage, plant, op)
+        trig = sincos(z[0])
+        out = controller(t, z, y[4:n_dyn], stage, plant, op, trig)
         u_f, u_r = apply_limits(out.u_f, out.u_r, plant, input_smoothing)
-        vt = terminal_voltage(z[0], z[2], z[3], stage, plant)
+        vt = terminal_voltage(z[0], z[2], z[3], stage, plant, trig)
         return vt, out.diagnostics, u_f, u_r, out.u_f, out.u_r
 
     vt, phi, u_f, u_r, u_f_cmd, u_r_cmd = jax.vmap(observe)(ts, ys)

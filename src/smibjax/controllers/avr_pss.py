@@ -136,9 +136,9 @@ class AvrPss(AbstractController):
         z_e = equilibrium_state(op, plant)
         return terminal_voltage(z_e[0], z_e[2], z_e[3], prefault_stage(plant), plant)
 
-    def __call__(self, t, z, s, stage, plant, op):
+    def __call__(self, t, z, s, stage, plant, op, trig=None):
         u_f, x_w, x_1, x_2, u_r = s[0], s[1], s[2], s[3], s[4]
-        vt = terminal_voltage(z[0], z[2], z[3], stage, plant)
+        vt = terminal_voltage(z[0], z[2], z[3], stage, plant, trig)
         vt_err = self._vt_ref(plant, op) - vt
         w_pu = z[1] / plant.ws
         y_w = self.K_pss * (w_pu - x_w)  # washout output

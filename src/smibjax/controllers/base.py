@@ -18,6 +18,7 @@ from jaxtyping import Array, Float
 
 from ..network import Stage
 from ..parameters import InitialEstimates, OperatingPoint, Plant
+from ..plant import Trig
 
 __all__ = ["AbstractController", "ControllerOutput"]
 
@@ -70,8 +71,12 @@ class AbstractController(eqx.Module):
         stage: Stage,
         plant: Plant,
         op: OperatingPoint,
+        trig: Trig | None = None,
     ) -> ControllerOutput:
-        """Commanded inputs, internal-state derivative and diagnostics at time t (s)."""
+        """Commanded inputs, internal-state derivative and diagnostics at time t (s).
+        `trig`: (sin delta, cos delta) of the measured angle when the caller has
+        them (`smibjax.plant.sincos`: the closed loop computes them once per
+        evaluation for the controller and the plant); None: compute them."""
 
     def parameters(self) -> dict[str, float]:
         """The tunable parameters as plain floats (the gains-file layout)."""

@@ -28,7 +28,7 @@ class NoControl(AbstractController):
     def initial_internal(self, z0, plant, op, init):
         return jnp.zeros((0,), dtype=z0.dtype)
 
-    def __call__(self, t, z, s, stage, plant, op):
+    def __call__(self, t, z, s, stage, plant, op, trig=None):
         u_f = operating_field_voltage(op, plant) + jnp.zeros_like(z[0])
         zero = jnp.zeros_like(z[0])
         return ControllerOutput(

@@ -183,8 +183,8 @@ class Synergetic(AbstractController):
                 )
         return th0
 
-    def __call__(self, t, z, s, stage, plant, op):
-        out = control_law(z, s, self.gains, plant, op, self.phi_layer)
+    def __call__(self, t, z, s, stage, plant, op, trig=None):
+        out = control_law(z, s, self.gains, plant, op, self.phi_layer, trig)
         rate = adaptation_rate(out, s, self.gains, plant, self.oracle)
         if self.projection is not None:
             rate = project(s, rate, self.projection)
