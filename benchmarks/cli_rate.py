@@ -2,16 +2,17 @@
 montecarlo --set beta1=-1 --set beta2=-1 ...` at n = --small and --large (default
 512 and 8192), the rate (large - small) / (t_large - t_small), which leaves out the
 process start and the compilation; for AFTSC and ASC, with the exact law and with each
---phi-layer W (AFTSC only: alpha = 1 is unaffected by the layer) and ASC with each
---chunks C (--small must be at least the largest C, so that both n run the same
-program), all in one run, the
+--phi-layer W (AFTSC only: alpha = 1 is unaffected by the layer), and each of these
+again with --chunk C for each --chunks C (--small must be at least the largest C, so
+that both n run the same program), all in one run, the
 variants alternated (each n, each variant in turn, --repeat rounds) so that contention
 on the machine affects them alike. Beside it, the SciPy loop of benchmarks/vs_scipy.py
 (LSODA, one scenario after another, tests/reference.py's model) on the first --n-scipy
-scenarios of the same Monte Carlo, in the same run. With --baseline REV every variant
-runs a second time with the code of git revision REV (a temporary worktree on
-PYTHONPATH), alternated with the current code's, and the table gives each variant's
-rate over its own rate at REV ("x base"). Writes benchmarks/results/cli_rate.json.
+scenarios of the same Monte Carlo, in the same run. With --baseline REV the two
+exact-law commands (AFTSC, ASC; default chunk) run a second time with the code of git
+revision REV (a temporary worktree on PYTHONPATH), alternated with the others, and the
+table gives each variant's rate over its controller's exact-law command at REV
+("x base": the command as it was). Writes benchmarks/results/cli_rate.json.
 
     python benchmarks/cli_rate.py [--small 512] [--large 8192] [--widths 0.01]
         [--chunks C ...] [--order] [--baseline REV] [--repeat 1] [--n-scipy 4]
@@ -107,8 +108,10 @@ def main() -> None:
         variants[f"aftsc W={w:g}"] = ("aftsc", ["--phi-layer", str(w)])
     if args.chunks and max(args.chunks) > args.small:
         ap.error(f"--small {args.small} is below --chunks {max(args.chunks)}")
-    for c in args.chunks:
-        variants[f"asc chunk={c}"] = ("asc", ["--chunk", str(c)])
+    for c in args.chunks:  # every variant above again at this chunk size
+        for v, (ctrl, extra) in list(variants.items()):
+            if "chunk=" not in v:
+                variants[f"{v} chunk={c}"] = (ctrl, [*extra, "--chunk", str(c)])
     if args.order:  # each variant again with --order reclose-delay
         for v, (c, extra) in list(variants.items()):
             variants[f"{v} ordered"] = (c, [*extra, "--order", "reclose-delay"])
@@ -122,8 +125,8 @@ def main() -> None:
             cwd=ROOT,
             capture_output=True,
         )
-        for v, spec in list(variants.items()):
-            variants[f"{v} @{args.baseline}"] = spec
+        for v in ("aftsc exact", "asc exact"):  # the command as it was at REV
+            variants[f"{v} @{args.baseline}"] = variants[v]
             roots[f"{v} @{args.baseline}"] = base_root
     times = {v: {args.small: [], args.large: []} for v in variants}
     try:
@@ -173,11 +176,9 @@ def main() -> None:
         r["over_exact"] = (
             r["marginal_scenarios_per_s"] / (rates[exact]["marginal_scenarios_per_s"])
         )
-        if args.baseline and not v.endswith(at):
-            r["over_baseline"] = (
-                r["marginal_scenarios_per_s"]
-                / (rates[v + at]["marginal_scenarios_per_s"])
-            )
+        if args.baseline and not v.endswith(at):  # over the command at REV
+            base = rates[f"{r['controller']} exact{at}"]["marginal_scenarios_per_s"]
+            r["over_baseline"] = r["marginal_scenarios_per_s"] / base
     print(
         f"\n{'variant':32} {'t_small':>8} {'t_large':>8} {'rate/s':>8} "
         f"{'x exact':>8} {'x scipy':>8} {'x base':>7}"

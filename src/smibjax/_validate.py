@@ -30,9 +30,14 @@ def _fmt(x) -> str:
     return np.array2string(a, precision=6, threshold=6)
 
 
-def require(ok, owner: str, name: str, value, allowed: str) -> None:
-    """Raise `ParameterError` unless `ok` (concrete, e.g. NumPy) holds everywhere."""
+def require(ok, owner: str, name: str, value, allowed: str, *others) -> None:
+    """Raise `ParameterError` unless `ok` (concrete, e.g. NumPy) holds everywhere.
+    `allowed` may hold `{}` fields for `others` (values it names, such as the bound
+    of a range), which are formatted like `value`, and only on failure: a batch of
+    parameter sets costs no array printing when it is valid."""
     if not bool(np.all(np.asarray(ok))):
+        if others:
+            allowed = allowed.format(*(_fmt(x) for x in others))
         raise ParameterError(
             f"{owner}.{name} = {_fmt(value)} is not allowed: {allowed}"
         )

@@ -17,7 +17,7 @@ split along its leading axis over the devices, so N cores work at once. Two ways
 from __future__ import annotations
 
 from concurrent.futures import ThreadPoolExecutor
-from functools import lru_cache
+from functools import lru_cache, partial
 
 import jax
 import jax.numpy as jnp
@@ -87,6 +87,14 @@ def device_map(fn, replicated, batched, devices=None):
 
     outs = list(_pool(n).map(run, range(n)))
     outs = [jax.device_put(o, devices[0]) for o in outs]
+    return _gather(outs, size)
+
+
+@partial(jax.jit, static_argnums=1)
+def _gather(outs: list, size: int):
+    """The slices' outputs concatenated along the batch axis and trimmed to `size`:
+    one compiled call (op by op it was two dispatches per output leaf, about 4% of a
+    Monte Carlo chunk of 256)."""
     return jax.tree_util.tree_map(lambda *xs: jnp.concatenate(xs)[:size], *outs)
 
 

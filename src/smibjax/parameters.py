@@ -101,20 +101,22 @@ class Plant(eqx.Module):
         for name in ("D", "XT"):
             v = getattr(p, name)
             require(v >= 0, o, name, v, "must be >= 0")
-        require(p.Xd > p.Xdp, o, "Xd", p.Xd, f"must be > Xdp = {p.Xdp}")
+        require(p.Xd > p.Xdp, o, "Xd", p.Xd, "must be > Xdp = {}", p.Xdp)
         require(
             p.uf_min < p.uf_max,
             o,
             "uf_min",
             p.uf_min,
-            f"must be < uf_max = {p.uf_max}",
+            "must be < uf_max = {}",
+            p.uf_max,
         )
         require(
             p.ur_min < p.ur_max,
             o,
             "ur_min",
             p.ur_min,
-            f"must be < ur_max = {p.ur_max}",
+            "must be < ur_max = {}",
+            p.ur_max,
         )
 
     @property
@@ -258,14 +260,16 @@ class Fault(eqx.Module):
             o,
             "t_clear",
             p.t_clear,
-            f"must be > t_fault = {p.t_fault}",
+            "must be > t_fault = {}",
+            p.t_fault,
         )
         require(
             p.t_reclose >= p.t_clear,
             o,
             "t_reclose",
             p.t_reclose,
-            f"must be >= t_clear = {p.t_clear}",
+            "must be >= t_clear = {}",
+            p.t_clear,
         )
         require((p.lam > 0) & (p.lam < 1), o, "lam", p.lam, "must be in (0, 1)")
         require((p.Xf >= 0) & np.isfinite(p.Xf), o, "Xf", p.Xf, "must be >= 0")

@@ -83,15 +83,14 @@ def summary_markdown(summary: dict, title: str = "Monte Carlo") -> str:
 
 def write_csv(path: Path, rows: dict[str, np.ndarray]) -> None:
     """scenarios.csv: a header of `COLUMNS`, one line per scenario (inf: 'inf')."""
-    cols = [rows[c] for c in COLUMNS]
-    lines = [",".join(COLUMNS)]
-    for i in range(cols[0].size):
-        lines.append(
-            ",".join(
-                str(int(c[i])) if name in INT_COLUMNS else repr(float(c[i]))
-                for name, c in zip(COLUMNS, cols, strict=True)
-            )
-        )
+    # column by column as Python numbers (repr of a float round-trips it exactly)
+    cols = [
+        map(str, np.asarray(rows[c]).astype(np.int64).tolist())
+        if c in INT_COLUMNS
+        else map(repr, np.asarray(rows[c], dtype=np.float64).tolist())
+        for c in COLUMNS
+    ]
+    lines = [",".join(COLUMNS), *map(",".join, zip(*cols, strict=True))]
     write_text(path, "\n".join(lines) + "\n")
 
 
