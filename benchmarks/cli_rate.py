@@ -58,6 +58,26 @@ def cli(
     return seconds
 
 
+def worktree_add(rev: str, path: Path) -> Path:
+    """A detached git worktree of revision `rev` at `path` (its code runs with
+    PYTHONPATH=path/src, see `cli`)."""
+    subprocess.run(
+        ["git", "worktree", "add", "--detach", str(path), rev],
+        check=True,
+        cwd=ROOT,
+        capture_output=True,
+    )
+    return path
+
+
+def worktree_remove(path: Path) -> None:
+    subprocess.run(
+        ["git", "worktree", "remove", "--force", str(path)],
+        cwd=ROOT,
+        capture_output=True,
+    )
+
+
 def scipy_rate(controller: str, n: int) -> float:
     """Scenarios/s of vs_scipy's LSODA loop on Monte Carlo scenarios 0..n-1 (seed 0)."""
     import vs_scipy  # configures the process (float64, devices) on import
@@ -118,13 +138,7 @@ def main() -> None:
     tmp = Path(tempfile.mkdtemp(prefix="smibjax-cli-rate-"))
     roots = {v: ROOT for v in variants}
     if args.baseline:
-        base_root = tmp / "baseline"
-        subprocess.run(
-            ["git", "worktree", "add", "--detach", str(base_root), args.baseline],
-            check=True,
-            cwd=ROOT,
-            capture_output=True,
-        )
+        base_root = worktree_add(args.baseline, tmp / "baseline")
         for v in ("aftsc exact", "asc exact"):  # the command as it was at REV
             variants[f"{v} @{args.baseline}"] = variants[v]
             roots[f"{v} @{args.baseline}"] = base_root
@@ -146,11 +160,7 @@ def main() -> None:
                     print(f"  {v} n={n}: {s:.1f} s", flush=True)
     finally:
         if args.baseline:
-            subprocess.run(
-                ["git", "worktree", "remove", "--force", str(tmp / "baseline")],
-                cwd=ROOT,
-                capture_output=True,
-            )
+            worktree_remove(tmp / "baseline")
         shutil.rmtree(tmp, ignore_errors=True)
     scipy = {}
     for c in ("aftsc", "asc"):

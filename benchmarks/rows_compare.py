@@ -20,11 +20,10 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 
 import argparse
-import subprocess
 import tempfile
 
 import numpy as np
-from cli_rate import ROOT, cli
+from cli_rate import ROOT, cli, worktree_add, worktree_remove
 
 VERDICTS = ("stable", "lost_sync", "budget_exhausted")
 SETTLING = ("settling_time", "settling_Vt", "settling_omega")
@@ -70,13 +69,7 @@ def main() -> None:
     from smibjax.cli.runs import read_rows
 
     tmp = Path(tempfile.mkdtemp(prefix="smibjax-rows-"))
-    base = tmp / "baseline"
-    subprocess.run(
-        ["git", "worktree", "add", "--detach", str(base), args.rev],
-        check=True,
-        cwd=ROOT,
-        capture_output=True,
-    )
+    base = worktree_add(args.rev, tmp / "baseline")
     results = {}
     try:
         for c in args.controllers:
@@ -96,11 +89,7 @@ def main() -> None:
                 flush=True,
             )
     finally:
-        subprocess.run(
-            ["git", "worktree", "remove", "--force", str(base)],
-            cwd=ROOT,
-            capture_output=True,
-        )
+        worktree_remove(base)
     write_results(
         args.out,
         result_name("rows_compare", args.tag),

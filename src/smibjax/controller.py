@@ -150,13 +150,7 @@ def paper_coordinates(
     on the nominal network (X2 = XL, Bf = 0):
     Pe = E V sin(delta)/Xs and Psvc = Mt Pe with Mt = Xs/(Xs - X1 X2 B) - 1.
     `trig`: (sin delta, cos delta) if already computed (`smibjax.plant.sincos`)."""
-    delta, domega, E, B = z[0], z[1], z[2], z[3]
-    sin_d = jnp.sin(delta) if trig is None else trig[0]
-    x2n = prefault_stage(plant).X2
-    xs = plant.X1 + x2n
-    pe = E * plant.V * sin_d / xs
-    mt = xs / (xs - plant.X1 * x2n * B) - 1
-    return jnp.stack([delta, domega, pe, mt * pe])
+    return _affine_model(z, plant, trig)[0]
 
 
 def drift_and_gain(
