@@ -64,6 +64,8 @@ def _sincos_jvp(primals, tangents):
 
 
 def _trig(delta: Scalar, trig: Trig | None) -> Trig:
+    """`trig`, or sin and cos of `delta` where the caller has none (under jit the
+    one not used is dropped)."""
     return (jnp.sin(delta), jnp.cos(delta)) if trig is None else trig
 
 
@@ -83,7 +85,7 @@ def electrical_power(
 ) -> Scalar:
     """Total electrical power P = E V sin(delta) / (Xs - X1 X2 (B + Bf)) (pu).
     `trig`: (sin delta, cos delta) if already computed (`sincos`)."""
-    sin_d = jnp.sin(delta) if trig is None else trig[0]
+    sin_d = _trig(delta, trig)[0]
     return E * plant.V * sin_d / effective_reactance(B, stage, plant)
 
 
@@ -99,7 +101,7 @@ def terminal_voltage(
     sqrt((X2 E)^2 + (X1 V)^2 + 2 X1 X2 E V cos delta) / (Xs - X1 X2 (B + Bf)).
     `trig`: (sin delta, cos delta) if already computed (`sincos`)."""
     x1, x2, v = plant.X1, stage.X2, plant.V
-    cos_d = trig[1] if trig is not None else jnp.cos(delta)
+    cos_d = _trig(delta, trig)[1]
     num = (x2 * E) ** 2 + (x1 * v) ** 2 + 2 * x1 * x2 * E * v * cos_d
     return jnp.sqrt(jnp.maximum(num, 0.0)) / effective_reactance(B, stage, plant)
 
