@@ -209,7 +209,8 @@ def main() -> None:
         {
             "command": "python -m smibjax montecarlo --n N --controller C --set "
             "beta1=-1 --set beta2=-1 [--phi-layer W] (defaults otherwise: seed 0, "
-            "chunk 256, rtol 1e-6, atol 1e-8, paper plant, oracle)",
+            "the command's own --chunk (1024 since 2026-12-01, 256 before), rtol 1e-6, "
+            "atol 1e-8, paper plant, oracle)",
             "baseline": args.baseline,
             "small": args.small,
             "large": args.large,
