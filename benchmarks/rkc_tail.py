@@ -179,6 +179,12 @@ def main() -> None:
     ap.add_argument("--controller", choices=("asc", "aftsc"), default="asc")
     ap.add_argument("--out", default=str(Path(__file__).parent / "results"))
     args = ap.parse_args()
+    if args.n < 1:
+        ap.error(f"--n {args.n} is not allowed: must be >= 1")
+    if not 0.0 <= args.delay < T_END:
+        ap.error(f"--delay {args.delay} is not allowed: must be in [0, {T_END:g}) s")
+    if min(args.stages) < 2:
+        ap.error(f"--stages {min(args.stages)} is not allowed: RKC needs s >= 2")
     orders = {}
     for s in args.stages:
         errs = order_check(s)
