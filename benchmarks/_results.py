@@ -11,6 +11,7 @@ from pathlib import Path
 import jax
 
 import smibjax as sj
+from smibjax.cli.files import write_text
 
 
 def write_results(out: str | Path, name: str, config: dict, payload: dict) -> Path:
@@ -28,5 +29,4 @@ def write_results(out: str | Path, name: str, config: dict, payload: dict) -> Pa
         "config": config,
     }
     path = out / f"{name}.json"
-    path.write_text(json.dumps({**meta, **payload}, indent=1))
-    return path
+    return write_text(path, json.dumps({**meta, **payload}, indent=1))

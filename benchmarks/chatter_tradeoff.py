@@ -25,6 +25,8 @@ import sys
 import tempfile
 from pathlib import Path
 
+from smibjax.cli.files import write_text
+
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
@@ -89,7 +91,7 @@ def main(argv=None) -> int:
                 rows[f"w={w:g}"] = _best(run, args.n_val)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    (out / "chatter_tradeoff.json").write_text(json.dumps(rows, indent=1))
+    write_text(out / "chatter_tradeoff.json", json.dumps(rows, indent=1))
     print(
         f"{'run':10} {'stable':>7} {'mean ts':>8} {'p95 ts':>7} {'TV u_f':>8} "
         f"{'TV u_r':>7}"
@@ -104,6 +106,8 @@ def main(argv=None) -> int:
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+
+    from smibjax.cli.plotting import save_figure
 
     fig, ax = plt.subplots(figsize=(6, 4))
     for k, v in rows.items():
@@ -128,7 +132,7 @@ def main(argv=None) -> int:
     ax.grid(alpha=0.3)
     ax.margins(x=0.35, y=0.15)
     fig.tight_layout()
-    fig.savefig(ROOT / "docs" / "figures" / "chatter_tradeoff.png", dpi=110)
+    save_figure(fig, ROOT / "docs" / "figures" / "chatter_tradeoff.png")
     return 0
 
 

@@ -39,6 +39,7 @@ import matplotlib.pyplot as plt
 from _results import write_results
 
 import smibjax as sj
+from smibjax.cli.plotting import save_figure
 from smibjax.montecarlo import COLUMNS, MonteCarloSpec, compute_chunk
 
 
@@ -225,7 +226,7 @@ def main() -> None:
     )
     ax.legend()
     fig.tight_layout()
-    fig.savefig(out / "cluster_scaling.png", dpi=110)
+    save_figure(fig, out / "cluster_scaling.png")
     print(f"wrote {out / 'cluster_scaling.json'} and {out / 'cluster_scaling.png'}")
 
 

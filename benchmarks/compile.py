@@ -233,6 +233,8 @@ def main(argv=None) -> None:
     sys.path.insert(0, str(HERE))
     from _results import write_results
 
+    from smibjax.cli.plotting import save_figure
+
     config = {
         "simulate": f"import smibjax; simulate(Gains.paper({args.controller!r}, "
         f"beta1=-1, beta2=-1), t_end={args.t_end:g}), default adaptive solver",
@@ -286,7 +288,7 @@ def main(argv=None) -> None:
     ax.set_title("fresh process to the first result (persistent cache cold / warm)")
     ax.legend(fontsize=8)
     fig.tight_layout()
-    fig.savefig(Path(args.out) / "compile.png", dpi=110)
+    save_figure(fig, Path(args.out) / "compile.png")
     print(f"wrote {path} and compile.png")
 
 

@@ -35,7 +35,8 @@ from _results import write_results
 
 import smibjax as sj
 from smibjax.cct import critical_clearing_times
-from smibjax.cli.files import read_gains_file
+from smibjax.cli.files import read_gains_file, write_text
+from smibjax.cli.plotting import save_figure
 from smibjax.controllers import Synergetic, make_controller
 from smibjax.metrics import metrics
 from smibjax.montecarlo import MonteCarloSpec, compute_chunk, summarize
@@ -228,8 +229,9 @@ def main(argv=None) -> int:
         }
         if work is not None:
             work.mkdir(parents=True, exist_ok=True)
-            (work / _work_name(label, args.n)).write_text(
-                json.dumps(done, indent=1, default=str)
+            write_text(
+                work / _work_name(label, args.n),
+                json.dumps(done, indent=1, default=str),
             )
         results[label] = {**done, "paper_fault": tr}
         _print_row(label, results[label])
@@ -243,7 +245,7 @@ def main(argv=None) -> int:
     payload = json.loads(json.dumps(payload, default=str))
     config = {"n": args.n, "chunk": args.chunk, "gains": args.gains, "limits": limits}
     write_results(out, "controllers", config, payload)
-    (out / "controllers.md").write_text(table_markdown(payload) + "\n")
+    write_text(out / "controllers.md", table_markdown(payload) + "\n")
     print(table_markdown(payload))
     import matplotlib
 
@@ -270,7 +272,7 @@ def main(argv=None) -> int:
     ax[-1].set_xlabel("t (s)")
     fig.suptitle("Paper's fault under the realistic limits (D = 0.2)", fontsize=10)
     fig.tight_layout()
-    fig.savefig(ROOT / "docs" / "figures" / "controllers_paper_fault.png", dpi=110)
+    save_figure(fig, ROOT / "docs" / "figures" / "controllers_paper_fault.png")
     return 0
 
 

@@ -52,6 +52,7 @@ import matplotlib.pyplot as plt
 from _common import DEFAULT_OUT, enable_cache, status, timed
 from _results import write_results
 
+from smibjax.cli.plotting import save_figure
 from tuning.config import load_config
 from tuning.driver import build
 from tuning.train import draw_scenarios, make_loss, make_train_step
@@ -378,7 +379,7 @@ def main(argv=None) -> None:
     ax[1].set_title("fresh process per pass")
     ax[1].legend(fontsize=8)
     fig.tight_layout()
-    fig.savefig(Path(args.out) / "gradients.png", dpi=110)
+    save_figure(fig, Path(args.out) / "gradients.png")
     print(f"wrote {path} and gradients.png")
 
 

@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 from scipy.stats import spearmanr
 
+from smibjax.cli.files import write_text
 from smibjax.cli.runs import read_rows
 
 INPUTS = ("t_fault", "t_reclose", "clear_duration", "fault_location", "fault_reactance")
@@ -66,7 +67,7 @@ def main() -> None:
             f"{e['by_steps']:.3f}  by t_reclose {e['by_t_reclose']:.3f}  by delay "
             f"{e['by_reclose_delay']:.3f}"
         )
-    Path(args.out).write_text(json.dumps(out, indent=1))
+    write_text(args.out, json.dumps(out, indent=1))
 
 
 if __name__ == "__main__":

@@ -40,6 +40,7 @@ import numpy as np
 from benchmarks._results import write_results
 
 import smibjax as sj
+from smibjax.cli.plotting import save_figure
 from smibjax.cli.process import enable_compilation_cache
 from smibjax.controllers import EstimateBox, Synergetic
 from smibjax.losses import LossWeights, scenario_loss
@@ -183,7 +184,7 @@ def _plot(rows, path):
     ax.set_xticks(x, labels, fontsize=6)
     ax.legend()
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    save_figure(fig, path)
 
 
 if __name__ == "__main__":

@@ -35,6 +35,8 @@ import matplotlib.pyplot as plt
 from _common import DEFAULT_OUT
 from _results import write_results
 
+from smibjax.cli.plotting import save_figure
+
 RTOL, ATOL = 1e-6, 1e-8
 ALPHAS = {"aftsc": 5 / 7, "asc": 1.0}
 
@@ -132,7 +134,7 @@ def main(argv=None) -> None:
     fig.tight_layout()
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    fig.savefig(out / "stiff_solvers.png", dpi=120)
+    save_figure(fig, out / "stiff_solvers.png", dpi=120)
     path = write_results(
         out,
         "stiff_solvers",

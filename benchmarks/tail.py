@@ -31,6 +31,7 @@ from _common import result_name
 from _results import write_results
 
 import smibjax as sj
+from smibjax.cli.files import write_text
 from smibjax.montecarlo import COLUMNS, MonteCarloSpec, compute_chunk
 from smibjax.parameters import PLANT_NAMES
 
@@ -241,7 +242,7 @@ def main() -> None:
     out = Path(args.out)
     name = result_name("tail", args.tag)
     out.mkdir(parents=True, exist_ok=True)
-    (out / f"{name}.md").write_text(md)
+    write_text(out / f"{name}.md", md)
     write_results(
         out,
         name,

@@ -59,6 +59,8 @@ from _common import (
 )
 from _results import write_results
 
+from smibjax.cli.plotting import save_figure
+
 TARGET = {"aftsc": 600.0, "asc": 1800.0}  # scenarios/s, batch >= 1024, 2+ devices
 TARGET_BATCH, TARGET_DEVICES, TARGET_DELTA = 1024, 2, 1e-5
 
@@ -255,7 +257,7 @@ def main(argv=None) -> None:
     ax.grid(alpha=0.3, which="both")
     ax.legend(fontsize=8)
     fig.tight_layout()
-    fig.savefig(Path(args.out) / f"{name}.png", dpi=110)
+    save_figure(fig, Path(args.out) / f"{name}.png")
     print(f"wrote {path} and {name}.png")
 
 

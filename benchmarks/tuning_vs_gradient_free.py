@@ -41,6 +41,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 from _results import write_results
 
+from smibjax.cli.plotting import save_figure
 from tuning.config import load_config
 from tuning.driver import build, run
 from tuning.search import cross_entropy_search, make_population_score
@@ -219,7 +220,7 @@ def main(argv=None) -> int:
         a.legend(fontsize=8)
     fig.suptitle("Tuning from the paper's gains at equal simulation budget")
     fig.tight_layout()
-    fig.savefig(Path(args.out) / "tuning_vs_gradient_free.png", dpi=110)
+    save_figure(fig, Path(args.out) / "tuning_vs_gradient_free.png")
     return 0
 
 

@@ -67,6 +67,7 @@ from _common import (
 from _results import write_results
 
 import smibjax as sj
+from smibjax.cli.plotting import save_figure
 from smibjax.closed_loop import DELTA_MARGIN
 
 TARGET_RATIO = {"aftsc": 300.0, "asc": 150.0}
@@ -348,7 +349,7 @@ def main(argv=None) -> None:
     ax.legend(fontsize=8)
     ax.grid(alpha=0.3, axis="y", which="both")
     fig.tight_layout()
-    fig.savefig(Path(args.out) / f"{name}.png", dpi=110)
+    save_figure(fig, Path(args.out) / f"{name}.png")
     print(f"wrote {path} and {name}.png")
 
 

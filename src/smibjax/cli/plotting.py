@@ -102,10 +102,11 @@ def subplots(nrows: int = 1, ncols: int = 1, **kw):
     return fig, fig.subplots(nrows, ncols, **kw)
 
 
-def save_figure(fig, path) -> None:
-    """Write `fig` in the format its file name's suffix asks for (PNG without one)."""
+def save_figure(fig, path, dpi: int = 110) -> None:
+    """Atomically write `fig` in the format its file name's suffix asks for (PNG
+    without one), at `dpi` dots per inch."""
     fmt = os.path.splitext(str(path))[1][1:].lower() or "png"
-    atomic_write(path, lambda tmp: fig.savefig(tmp, dpi=110, format=fmt))
+    atomic_write(path, lambda tmp: fig.savefig(tmp, dpi=dpi, format=fmt))
 
 
 def _note_lost(fig, runs):
