@@ -152,6 +152,11 @@ def wait(folder: Path, name: str, timeout: float) -> tuple[int, Path]:
     return int((out / "rc").read_text()), out
 
 
+def timing_line(name: str, rc: int, wall: float, cpu: float) -> str:
+    """One script's line of `_time_each` (benchmarks/suite_time.py parses it)."""
+    return f"{name:16} rc {rc}  wall {wall:6.1f} s  cpu {cpu:6.1f} s"
+
+
 def _time_each(cache: str) -> None:
     """Run the tiny scripts one after another (not side by side) with the compilation
     cache in `cache` and print each one's wall and CPU seconds (the README's
@@ -173,11 +178,7 @@ def _time_each(cache: str) -> None:
             ).returncode
             r1 = resource.getrusage(resource.RUSAGE_CHILDREN)
             cpu = r1.ru_utime - r0.ru_utime + r1.ru_stime - r0.ru_stime
-            print(
-                f"{name:16} rc {rc}  wall {time.monotonic() - t0:6.1f} s  "
-                f"cpu {cpu:6.1f} s",
-                flush=True,
-            )
+            print(timing_line(name, rc, time.monotonic() - t0, cpu), flush=True)
 
 
 if __name__ == "__main__":

@@ -1,0 +1,89 @@
+"""A pytest plugin for `suite_time.py`: per test, its wall and process-CPU seconds and
+the JAX compilation events it caused, written per process (the controller and each
+pytest-xdist worker) to $SMIBJAX_SUITE_PROFILE/NAME.json at the end of the session.
+
+Loaded with `-p _suite_profile` (this folder on PYTHONPATH); does nothing unless
+SMIBJAX_SUITE_PROFILE names a folder. The events are JAX's own
+(`jax.monitoring`): tracing to a jaxpr, lowering to MLIR, XLA's backend compile, and
+the persistent cache's retrievals, each with the jitted function's name.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import time
+from collections import defaultdict
+
+import pytest
+
+ENV = "SMIBJAX_SUITE_PROFILE"
+# jax.monitoring event name -> short name
+EVENTS = {
+    "/jax/core/compile/jaxpr_trace_duration": "trace",
+    "/jax/core/compile/jaxpr_to_mlir_module_duration": "lower",
+    "/jax/core/compile/backend_compile_duration": "compile",
+    "/jax/compilation_cache/cache_retrieval_time_sec": "cache_read",
+}
+
+
+class _Profile:
+    def __init__(self):
+        self.test = "<outside tests>"
+        self.tests = []  # [nodeid, start epoch s, wall s, cpu s, {event: [n, s]}]
+        self.current = defaultdict(lambda: [0, 0.0])
+        self.programs = defaultdict(lambda: [0, 0.0])  # compile: fun_name -> [n, s]
+
+    def listen(self, event, duration, **kw):
+        short = EVENTS.get(event)
+        if short is None:
+            return
+        slot = self.current[short]
+        slot[0] += 1
+        slot[1] += float(duration)
+        if short == "compile":
+            prog = self.programs[str(kw.get("fun_name", "?"))]
+            prog[0] += 1
+            prog[1] += float(duration)
+
+
+_profile = _Profile()
+
+
+def pytest_configure(config):
+    if not os.environ.get(ENV):
+        return
+    import jax.monitoring
+
+    jax.monitoring.register_event_duration_secs_listener(_profile.listen)
+    config._suite_profile = True
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_protocol(item, nextitem):
+    if not getattr(item.config, "_suite_profile", False):
+        yield
+        return
+    _profile.current = defaultdict(lambda: [0, 0.0])
+    t0, c0 = time.time(), time.process_time()
+    yield
+    wall, cpu = time.time() - t0, time.process_time() - c0
+    _profile.tests.append([item.nodeid, t0, wall, cpu, dict(_profile.current)])
+    _profile.current = defaultdict(lambda: [0, 0.0])
+
+
+def pytest_unconfigure(config):
+    folder = os.environ.get(ENV)
+    if not folder or not getattr(config, "_suite_profile", False):
+        return
+    from smibjax.cli.files import write_text
+
+    name = os.environ.get("PYTEST_XDIST_WORKER", "controller")
+    payload = {
+        "process": name,
+        "cpu_s": time.process_time(),
+        "tests": _profile.tests,
+        "programs": dict(_profile.programs),
+        "outside_tests": dict(_profile.current),
+    }
+    write_text(os.path.join(folder, f"{name}.json"), json.dumps(payload))

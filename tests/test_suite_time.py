@@ -1,0 +1,126 @@
+"""benchmarks/suite_time.py (the suite's runtime and where it goes) on what it reads:
+its summary of the profiler's files against hand-computed totals, its parse of the
+calibration lines `tests/bench_chain.py` prints, its refusal of a bad --ref before
+any work, and the `_suite_profile` plugin in a real pytest process."""
+
+import importlib.util
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from bench_chain import timing_line
+
+BENCH = Path(__file__).resolve().parents[1] / "benchmarks"
+
+
+@pytest.fixture(scope="module")
+def suite_time():
+    spec = importlib.util.spec_from_file_location("suite_time", BENCH / "suite_time.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def test_summary_adds_up_the_processes_and_ranks_the_largest(suite_time):
+    start = 1000.0
+    gw0 = {
+        "process": "gw0",
+        "cpu_s": 50.0,
+        "tests": [
+            ["tests/test_a.py::t1", 1001.0, 4.0, 3.5, {"compile": [2, 3.0]}],
+            ["tests/test_a.py::t2", 1005.0, 1.0, 0.5, {"trace": [1, 0.25]}],
+        ],
+        "programs": {"jit(run)": [2, 3.0]},
+        "outside_tests": {"compile": [1, 0.5]},
+    }
+    gw1 = {
+        "process": "gw1",
+        "cpu_s": 40.0,
+        "tests": [["tests/test_b.py::t3", 1002.0, 9.0, 8.0, {"compile": [1, 6.0]}]],
+        "programs": {"jit(_simulate)": [1, 6.0], "jit(run)": [1, 0.5]},
+        "outside_tests": {},
+    }
+    s = suite_time.summarize([gw1, gw0], start)
+    assert [p["process"] for p in s["processes"]] == ["gw0", "gw1"]
+    p0, p1 = s["processes"]
+    assert (p0["tests"], p0["busy_s"], p0["last_end_s"]) == (2, 5.0, 6.0)
+    assert (p1["tests"], p1["busy_s"], p1["last_end_s"]) == (1, 9.0, 11.0)
+    assert s["events"]["compile"] == {"count": 4, "s": 9.5}  # 2 + 1 + 1 outside
+    assert s["events"]["trace"] == {"count": 1, "s": 0.25}
+    assert s["modules_wall_s"] == {"tests/test_b.py": 9.0, "tests/test_a.py": 5.0}
+    assert s["programs"][0] == {
+        "function": "jit(_simulate)",
+        "compiles": 1,
+        "compile_s": 6.0,
+    }
+    assert s["programs"][1] == {"function": "jit(run)", "compiles": 3, "compile_s": 3.5}
+    assert [t["test"] for t in s["tests"]] == [
+        "tests/test_b.py::t3",
+        "tests/test_a.py::t1",
+        "tests/test_a.py::t2",
+    ]
+    assert s["tests"][1]["compile_s"] == 3.0 and s["tests"][2]["trace_s"] == 0.25
+
+
+def test_calibration_lines_are_read_as_bench_chain_prints_them(suite_time):
+    text = "\n".join(
+        [
+            "some other output",
+            timing_line("throughput", 0, 19.54, 28.25),
+            timing_line("stiff_solvers", 1, 1.9, 2.1),
+        ]
+    )
+    got = suite_time.parse_calibration(text)
+    assert got == {
+        "throughput": {"rc": 0, "wall_s": 19.5, "cpu_s": 28.2},
+        "stiff_solvers": {"rc": 1, "wall_s": 1.9, "cpu_s": 2.1},
+    }
+
+
+def test_a_bad_ref_is_one_line_before_any_work(suite_time, tmp_path, capsys):
+    assert suite_time.main(["--ref", "no-such-ref", "--out", str(tmp_path)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err == "error: --ref = 'no-such-ref' is not allowed: must name a commit here"
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_profiler_plugin_records_each_test_and_its_compiles(tmp_path):
+    (tmp_path / "test_tiny.py").write_text(
+        "import jax, jax.numpy as jnp\n"
+        "def test_jit():\n"
+        "    def tiny_program(x):\n"
+        "        return jnp.sin(x) * 2.0\n"
+        "    assert float(jax.jit(tiny_program)(1.0)) > 0\n"
+        "def test_nothing():\n"
+        "    pass\n"
+    )
+    out = tmp_path / "profile"
+    out.mkdir()
+    env = {
+        **os.environ,
+        "PYTHONPATH": os.pathsep.join([str(BENCH), os.environ.get("PYTHONPATH", "")]),
+        "SMIBJAX_SUITE_PROFILE": str(out),
+    }
+    env.pop("PYTEST_XDIST_WORKER", None)
+    p = subprocess.run(
+        [sys.executable, "-m", "pytest", "-q", "-p", "_suite_profile"]
+        + ["-p", "no:cacheprovider", "-p", "no:xdist", "test_tiny.py"],
+        cwd=tmp_path,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert p.returncode == 0, p.stdout[-2000:] + p.stderr[-2000:]
+    prof = json.loads((out / "controller.json").read_text())
+    rows = {r[0]: r for r in prof["tests"]}
+    assert set(rows) == {"test_tiny.py::test_jit", "test_tiny.py::test_nothing"}
+    jit_row = rows["test_tiny.py::test_jit"]
+    assert jit_row[4]["compile"][0] >= 1 and jit_row[4]["trace"][0] >= 1
+    assert "compile" not in rows["test_tiny.py::test_nothing"][4]
+    assert prof["programs"]["jit(tiny_program)"][0] == 1
+    assert prof["cpu_s"] > 0
