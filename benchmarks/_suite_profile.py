@@ -29,9 +29,9 @@ EVENTS = {
 
 class _Profile:
     def __init__(self):
-        self.test = "<outside tests>"
         self.tests = []  # [nodeid, start epoch s, wall s, cpu s, {event: [n, s]}]
-        self.current = defaultdict(lambda: [0, 0.0])
+        self.outside = defaultdict(lambda: [0, 0.0])  # collection, between tests
+        self.current = self.outside  # where events go now
         self.programs = defaultdict(lambda: [0, 0.0])  # compile: fun_name -> [n, s]
 
     def listen(self, event, duration, **kw):
@@ -69,7 +69,7 @@ def pytest_runtest_protocol(item, nextitem):
     yield
     wall, cpu = time.time() - t0, time.process_time() - c0
     _profile.tests.append([item.nodeid, t0, wall, cpu, dict(_profile.current)])
-    _profile.current = defaultdict(lambda: [0, 0.0])
+    _profile.current = _profile.outside
 
 
 def pytest_unconfigure(config):
@@ -84,6 +84,6 @@ def pytest_unconfigure(config):
         "cpu_s": time.process_time(),
         "tests": _profile.tests,
         "programs": dict(_profile.programs),
-        "outside_tests": dict(_profile.current),
+        "outside_tests": dict(_profile.outside),
     }
     write_text(os.path.join(folder, f"{name}.json"), json.dumps(payload))

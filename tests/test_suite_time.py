@@ -91,6 +91,9 @@ def test_a_bad_ref_is_one_line_before_any_work(suite_time, tmp_path, capsys):
 def test_profiler_plugin_records_each_test_and_its_compiles(tmp_path):
     (tmp_path / "test_tiny.py").write_text(
         "import jax, jax.numpy as jnp\n"
+        "def at_import(x):\n"
+        "    return x + 1.0\n"
+        "jax.jit(at_import)(1.0)  # at collection, outside any test\n"
         "def test_jit():\n"
         "    def tiny_program(x):\n"
         "        return jnp.sin(x) * 2.0\n"
@@ -123,4 +126,6 @@ def test_profiler_plugin_records_each_test_and_its_compiles(tmp_path):
     assert jit_row[4]["compile"][0] >= 1 and jit_row[4]["trace"][0] >= 1
     assert "compile" not in rows["test_tiny.py::test_nothing"][4]
     assert prof["programs"]["jit(tiny_program)"][0] == 1
+    assert prof["programs"]["jit(at_import)"][0] == 1
+    assert prof["outside_tests"]["compile"][0] >= 1  # kept, not dropped at test start
     assert prof["cpu_s"] > 0
