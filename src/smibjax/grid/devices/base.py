@@ -1,0 +1,138 @@
+"""The device interface: how a group of devices of one model meets the network and the
+other devices.
+
+A device group is an equinox Module holding its parameters as arrays with a device
+axis (shape (k,)), the positions of the devices it is attached to (`gen`: positions
+in `System.generators`; `bus`: positions in `System.buses`) and nothing else. Its
+states are an array of shape (n_states, k): `x[i]` is state `state_names[i]` of every
+device in the group. All methods are pure and vectorized over the device axis; no
+Python loop over devices.
+
+Units: network quantities (bus voltages, currents, admittances) in pu on the system
+base; a machine's own quantities (Pe, Qe, Pm, Efd, currents in `measure`) in pu on its
+machine base `mbase`; speeds as per-unit deviations from synchronous speed (omega = 0
+at synchronism); angles in rad in the network's synchronous frame; times in s.
+
+Machines (`AbstractMachine`) are sources behind an admittance (Norton form) at their
+terminal bus: they inject I = i_norton(x) and add y to the bus's self-admittance.
+Controllers (`AbstractController`) read measurements by name and write one command by
+name: an exciter reads "Vt" (and "Vs", the stabilizer's output) and writes "Efd"; a
+stabilizer reads "omega" or "Pe" and writes "Vs"; a governor reads "omega" and writes
+"Pm". The closed loop gathers each controller's inputs at its devices' positions and
+scatters its output back, so nothing indexes another model's states.
+"""
+
+from __future__ import annotations
+
+import abc
+from typing import ClassVar
+
+import equinox as eqx
+import jax.numpy as jnp
+import numpy as np
+from jaxtyping import Array, Complex, Float, Int
+
+__all__ = [
+    "AbstractMachine",
+    "AbstractController",
+    "AbstractShuntDevice",
+    "f64",
+    "i64",
+]
+
+States = Float[Array, "n_states k"]
+Vec = Float[Array, " k"]
+CVec = Complex[Array, " k"]
+
+
+def f64(x):
+    """Parameter converter: a float64 array (numpy at build time; JAX arrays pass)."""
+    if isinstance(x, np.ndarray | float | int | list | tuple):
+        return np.asarray(x, dtype=np.float64)
+    return jnp.asarray(x, dtype=jnp.float64)
+
+
+def i64(x):
+    return np.asarray(x, dtype=np.int64)
+
+
+class AbstractMachine(eqx.Module):
+    """A group of synchronous machines (or sources) of one model at positions `gen`
+    of `System.generators`. `mbase` (MVA) is each machine's base; the closed loop
+    gives every method the system base through `s_base` (MVA)."""
+
+    gen: eqx.AbstractVar[Int[np.ndarray, " k"]]
+    mbase: eqx.AbstractVar[Vec]
+    state_names: ClassVar[tuple[str, ...]]
+    # which states are the rotor angle and the speed deviation (COI, metrics)
+    delta_index: ClassVar[int] = 0
+    omega_index: ClassVar[int] = 1
+
+    @abc.abstractmethod
+    def norton(self, x: States, s_base: float) -> tuple[CVec, CVec]:
+        """(i, y): the injected current source (pu, system base, network frame) and
+        the shunt admittance (pu, system base) at the terminal bus."""
+
+    @abc.abstractmethod
+    def rhs(self, x: States, v: CVec, cmd: dict[str, Vec], s_base: float) -> States:
+        """dx/dt given the terminal voltages v (pu, network frame) and the commands
+        cmd["Efd"] (field voltage, pu) and cmd["Pm"] (mechanical power, pu machine
+        base)."""
+
+    @abc.abstractmethod
+    def measure(self, x: States, v: CVec, s_base: float) -> dict[str, Vec]:
+        """Measurements: "delta" (rad), "omega" (pu deviation), "Pe", "Qe" (pu machine
+        base, out of the terminal), "Vt" (pu), "It" (pu machine base)."""
+
+    @abc.abstractmethod
+    def init(
+        self, v: CVec, s: CVec, s_base: float
+    ) -> tuple[States, dict[str, Vec]]:
+        """(x0, cmd0): the equilibrium states for terminal voltages v and power
+        injections s = P + jQ (pu, system base) from the power flow, and the commands
+        ("Efd", "Pm") that hold them."""
+
+
+class AbstractController(eqx.Module):
+    """A group of controllers of one model. `gen` (or, for bus devices, `bus`) says
+    where each device sits; `inputs` names the measurements it reads, `output` the
+    command it writes. `ref` is whatever the group's `init` computed to start at
+    equilibrium (a voltage reference, a load reference), passed back to every call."""
+
+    inputs: ClassVar[tuple[str, ...]]
+    output: ClassVar[str]
+    state_names: ClassVar[tuple[str, ...]]
+
+    @abc.abstractmethod
+    def init(self, y0: Vec, meas: dict[str, Vec]) -> tuple[States, Vec]:
+        """(x0, ref): states and reference for which the output is y0 at rest, given
+        the measurements at the operating point."""
+
+    @abc.abstractmethod
+    def rhs(self, x: States, meas: dict[str, Vec], ref: Vec) -> States:
+        """dx/dt."""
+
+    @abc.abstractmethod
+    def out(self, x: States, meas: dict[str, Vec], ref: Vec) -> Vec:
+        """The command (after the device's own output limits)."""
+
+
+class AbstractShuntDevice(eqx.Module):
+    """A group of voltage-dependent shunt devices (SVCs) at bus positions `bus`: a
+    variable admittance y(x) at the bus, solved with the network at every evaluation.
+    """
+
+    bus: eqx.AbstractVar[Int[np.ndarray, " k"]]
+    state_names: ClassVar[tuple[str, ...]]
+
+    @abc.abstractmethod
+    def admittance(self, x: States, s_base: float) -> CVec:
+        """The shunt admittance (pu, system base)."""
+
+    @abc.abstractmethod
+    def rhs(self, x: States, vm: Vec, cmd: Vec, ref: Vec) -> States:
+        """dx/dt given the bus voltage magnitude vm (pu) and an external command."""
+
+    @abc.abstractmethod
+    def init(self, v: CVec, q: Vec, s_base: float) -> tuple[States, Vec]:
+        """(x0, ref) for bus voltages v and reactive injection q (pu, system base)."""

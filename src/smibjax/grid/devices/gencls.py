@@ -1,0 +1,76 @@
+"""GENCLS: the classical machine, a constant EMF E' behind the transient reactance
+X'd (PSS/E record `GENCLS`: H, D).
+
+    d delta/dt = omega_b omega
+    2 H d omega/dt = Pm - Pe - D omega,    Pe = Re(E' conj(I)) (pu machine base)
+
+with omega the speed deviation (pu), omega_b = 2 pi f_base, I = (E' - V) / (Ra + j X'd)
+the stator current; E' = |E'| e^{j delta} in the network frame. X'd and Ra come from
+the raw file's generator record (ZX, ZR, on the machine base), as PSS/E takes them.
+Torque and power are equal in per unit (no speed factor), as in ANDES.
+"""
+
+from __future__ import annotations
+
+import equinox as eqx
+import jax.numpy as jnp
+import numpy as np
+
+from .base import AbstractMachine, f64, i64
+
+__all__ = ["GENCLS"]
+
+
+class GENCLS(AbstractMachine):
+    gen: np.ndarray = eqx.field(converter=i64)
+    mbase: np.ndarray = eqx.field(converter=f64)  # machine base (MVA)
+    H: np.ndarray = eqx.field(converter=f64)  # inertia constant (s, machine base)
+    D: np.ndarray = eqx.field(converter=f64)  # damping (pu power / pu speed)
+    xdp: np.ndarray = eqx.field(converter=f64)  # X'd (pu machine base)
+    ra: np.ndarray = eqx.field(converter=f64)  # armature resistance (pu machine base)
+    E: np.ndarray = eqx.field(converter=f64)  # |E'| (pu), set by `init`-time build
+    f_base: float = eqx.field(static=True, default=60.0)
+
+    state_names = ("delta", "omega")
+
+    def _z(self):
+        return self.ra + 1j * self.xdp
+
+    def norton(self, x, s_base):
+        y_m = 1.0 / self._z()
+        e = self.E * jnp.exp(1j * x[0])
+        scale = self.mbase / s_base
+        return e * y_m * scale, y_m * scale
+
+    def _current(self, x, v, s_base):
+        """Stator current out of the machine (pu machine base)."""
+        e = self.E * jnp.exp(1j * x[0])
+        return (e - v) / self._z() * (s_base / self.mbase) * (self.mbase / s_base)
+
+    def measure(self, x, v, s_base):
+        e = self.E * jnp.exp(1j * x[0])
+        i = (e - v) / self._z()  # machine base: v and e in pu voltage
+        s = v * jnp.conj(i)
+        return {
+            "delta": x[0],
+            "omega": x[1],
+            "Pe": jnp.real(s),
+            "Qe": jnp.imag(s),
+            "Vt": jnp.abs(v),
+            "It": jnp.abs(i),
+            "Te": jnp.real(e * jnp.conj(i)),
+        }
+
+    def rhs(self, x, v, cmd, s_base):
+        m = self.measure(x, v, s_base)
+        wb = 2 * np.pi * self.f_base
+        d_delta = wb * x[1]
+        d_omega = (cmd["Pm"] - m["Te"] - self.D * x[1]) / (2 * self.H)
+        return jnp.stack([d_delta, d_omega])
+
+    def init(self, v, s, s_base):
+        i = jnp.conj(s / v) * (s_base / self.mbase)  # machine base
+        e = v + self._z() * i
+        x0 = jnp.stack([jnp.angle(e), jnp.zeros_like(jnp.real(e))])
+        pm = jnp.real(e * jnp.conj(i))
+        return x0, {"Pm": pm, "Efd": jnp.abs(e), "E": jnp.abs(e)}
