@@ -69,18 +69,32 @@ class AbstractMachine(eqx.Module):
     omega_index: ClassVar[int] = 1
 
     @abc.abstractmethod
-    def norton(self, x: States, s_base: float) -> tuple[CVec, CVec]:
+    def norton(
+        self, x: States, held: dict[str, Vec], s_base: float
+    ) -> tuple[CVec, CVec]:
         """(i, y): the injected current source (pu, system base, network frame) and
-        the shunt admittance (pu, system base) at the terminal bus."""
+        the shunt admittance (pu, system base) at the terminal bus. `held` is the
+        commands' operating-point values from `init` (GENCLS takes its constant EMF
+        from held["Efd"]); the network solution must not depend on this step's
+        commands."""
 
     @abc.abstractmethod
-    def rhs(self, x: States, v: CVec, cmd: dict[str, Vec], s_base: float) -> States:
+    def rhs(
+        self,
+        x: States,
+        v: CVec,
+        cmd: dict[str, Vec],
+        held: dict[str, Vec],
+        s_base: float,
+    ) -> States:
         """dx/dt given the terminal voltages v (pu, network frame) and the commands
         cmd["Efd"] (field voltage, pu) and cmd["Pm"] (mechanical power, pu machine
         base)."""
 
     @abc.abstractmethod
-    def measure(self, x: States, v: CVec, s_base: float) -> dict[str, Vec]:
+    def measure(
+        self, x: States, v: CVec, held: dict[str, Vec], s_base: float
+    ) -> dict[str, Vec]:
         """Measurements: "delta" (rad), "omega" (pu deviation), "Pe", "Qe" (pu machine
         base, out of the terminal), "Vt" (pu), "It" (pu machine base)."""
 

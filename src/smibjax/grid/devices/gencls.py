@@ -28,7 +28,6 @@ class GENCLS(AbstractMachine):
     D: np.ndarray = eqx.field(converter=f64)  # damping (pu power / pu speed)
     xdp: np.ndarray = eqx.field(converter=f64)  # X'd (pu machine base)
     ra: np.ndarray = eqx.field(converter=f64)  # armature resistance (pu machine base)
-    E: np.ndarray = eqx.field(converter=f64)  # |E'| (pu), set by `init`-time build
     f_base: float = eqx.field(static=True, default=60.0)
 
     state_names = ("delta", "omega")
@@ -36,19 +35,14 @@ class GENCLS(AbstractMachine):
     def _z(self):
         return self.ra + 1j * self.xdp
 
-    def norton(self, x, s_base):
+    def norton(self, x, held, s_base):
         y_m = 1.0 / self._z()
-        e = self.E * jnp.exp(1j * x[0])
+        e = held["Efd"] * jnp.exp(1j * x[0])
         scale = self.mbase / s_base
         return e * y_m * scale, y_m * scale
 
-    def _current(self, x, v, s_base):
-        """Stator current out of the machine (pu machine base)."""
-        e = self.E * jnp.exp(1j * x[0])
-        return (e - v) / self._z() * (s_base / self.mbase) * (self.mbase / s_base)
-
-    def measure(self, x, v, s_base):
-        e = self.E * jnp.exp(1j * x[0])
+    def measure(self, x, v, held, s_base):
+        e = held["Efd"] * jnp.exp(1j * x[0])  # |E'| is constant: held["Efd"]
         i = (e - v) / self._z()  # machine base: v and e in pu voltage
         s = v * jnp.conj(i)
         return {
@@ -61,8 +55,8 @@ class GENCLS(AbstractMachine):
             "Te": jnp.real(e * jnp.conj(i)),
         }
 
-    def rhs(self, x, v, cmd, s_base):
-        m = self.measure(x, v, s_base)
+    def rhs(self, x, v, cmd, held, s_base):
+        m = self.measure(x, v, held, s_base)
         wb = 2 * np.pi * self.f_base
         d_delta = wb * x[1]
         d_omega = (cmd["Pm"] - m["Te"] - self.D * x[1]) / (2 * self.H)
@@ -73,4 +67,4 @@ class GENCLS(AbstractMachine):
         e = v + self._z() * i
         x0 = jnp.stack([jnp.angle(e), jnp.zeros_like(jnp.real(e))])
         pm = jnp.real(e * jnp.conj(i))
-        return x0, {"Pm": pm, "Efd": jnp.abs(e), "E": jnp.abs(e)}
+        return x0, {"Pm": pm, "Efd": jnp.abs(e)}
