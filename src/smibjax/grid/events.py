@@ -1,0 +1,132 @@
+"""Events as data: faults, branch trips and reclosures, generator trips.
+
+Each event is an equinox Module whose fields may be traced (times, locations, fault
+impedances, even the faulted bus or branch position), so a batch of scenarios is a
+vmap over events of one structure. An event contributes one or two *switch times*
+(`switches`); the network is piecewise constant between them and the solver restarts
+at each (`jump_ts`), so the switch times stay differentiable.
+
+The switch times of a scenario are applied in the order the events list them
+(`BusFault` lists its on and off times in turn): stage j of the run is the network
+after the first j switches. With concrete times `check_order` refuses a list that is
+out of time order; under `jit` the order is trusted (draw times in order).
+"""
+
+from __future__ import annotations
+
+import equinox as eqx
+import jax.numpy as jnp
+import numpy as np
+from jaxtyping import Array, Float, Int
+
+__all__ = [
+    "BusFault",
+    "LineFault",
+    "BranchTrip",
+    "BranchClose",
+    "GenTrip",
+    "Event",
+    "switch_times",
+    "check_order",
+]
+
+Scalar = Float[Array, ""]
+
+
+def _f(x):
+    return jnp.asarray(x, dtype=jnp.float64)
+
+
+def _i(x):
+    return jnp.asarray(x, dtype=jnp.int32)
+
+
+class BusFault(eqx.Module):
+    """A three-phase fault at bus position `bus` from `t_on` to `t_off` (s) through
+    the impedance r + j x (pu, system base); r = x = 0 is a bolted fault (the bus
+    voltage is held at exactly zero)."""
+
+    bus: Int[Array, ""] = eqx.field(converter=_i)
+    t_on: Scalar = eqx.field(converter=_f)
+    t_off: Scalar = eqx.field(converter=_f)
+    r: Scalar = eqx.field(converter=_f, default=0.0)
+    x: Scalar = eqx.field(converter=_f, default=0.0)
+
+    def switches(self):
+        return (self.t_on, self.t_off)
+
+
+class LineFault(eqx.Module):
+    """A three-phase fault on branch position `branch` at fraction `frac` in (0, 1) of
+    its length from its from-bus, from `t_on` to `t_off` (s), through r + j x (pu).
+    The branch is split at the fault point (series impedance and charging in
+    proportion; a transformer's tap stays at the from side); at `t_off` the fault
+    is removed and the branch is whole again (to clear by opening the branch, add a
+    `BranchTrip` at the same time)."""
+
+    branch: Int[Array, ""] = eqx.field(converter=_i)
+    frac: Scalar = eqx.field(converter=_f)
+    t_on: Scalar = eqx.field(converter=_f)
+    t_off: Scalar = eqx.field(converter=_f)
+    r: Scalar = eqx.field(converter=_f, default=0.0)
+    x: Scalar = eqx.field(converter=_f, default=0.0)
+
+    def switches(self):
+        return (self.t_on, self.t_off)
+
+
+class BranchTrip(eqx.Module):
+    """Branch position `branch` opens at `t` (s)."""
+
+    branch: Int[Array, ""] = eqx.field(converter=_i)
+    t: Scalar = eqx.field(converter=_f)
+
+    def switches(self):
+        return (self.t,)
+
+
+class BranchClose(eqx.Module):
+    """Branch position `branch` closes (recloses) at `t` (s)."""
+
+    branch: Int[Array, ""] = eqx.field(converter=_i)
+    t: Scalar = eqx.field(converter=_f)
+
+    def switches(self):
+        return (self.t,)
+
+
+class GenTrip(eqx.Module):
+    """Generator position `gen` trips at `t` (s): it stops injecting current, its
+    states are frozen and it leaves the centre of inertia."""
+
+    gen: Int[Array, ""] = eqx.field(converter=_i)
+    t: Scalar = eqx.field(converter=_f)
+
+    def switches(self):
+        return (self.t,)
+
+
+Event = BusFault | LineFault | BranchTrip | BranchClose | GenTrip
+
+
+def switch_times(events) -> Float[Array, " n_switch"]:
+    """Every switch time of `events`, in their order (s)."""
+    ts = [t for e in events for t in e.switches()]
+    if not ts:
+        return jnp.zeros((0,))
+    return jnp.stack([jnp.asarray(t, dtype=jnp.float64) for t in ts])
+
+
+def check_order(events) -> None:
+    """ValueError (one line) if concrete switch times are out of order or negative."""
+    try:
+        ts = np.asarray(switch_times(events))
+    except Exception:  # traced: nothing to check
+        return
+    if ts.size and (
+        np.any(np.diff(ts) < 0) or ts[0] < 0 or not np.all(np.isfinite(ts))
+    ):
+        raise ValueError(
+            f"event times {ts.tolist()} must be finite, >= 0 and in the order the "
+            "events are listed"
+        )
