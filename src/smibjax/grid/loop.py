@@ -15,6 +15,7 @@ Commands no controller writes stay at their operating-point values (`held`).
 
 from __future__ import annotations
 
+import dataclasses
 from typing import Any
 
 import equinox as eqx
@@ -32,6 +33,52 @@ MEASUREMENTS = ("delta", "omega", "Pe", "Qe", "Vt", "It", "Te")
 _ORDER = {"Vs": 0, "Efd": 1, "Pm": 2}
 
 
+@dataclasses.dataclass(frozen=True)
+class Layout:
+    """Where every device group sits, as hashable tuples fixed when the case is
+    built (positions stay Python constants under jit, so a case can be passed to
+    jitted functions whole): generator positions of each machine and controller
+    group, the port of each machine and SVC, the port buses, infinite-bus
+    generators and their buses."""
+
+    ports: tuple[int, ...]
+    machine_gen: tuple[tuple[int, ...], ...]
+    machine_port: tuple[tuple[int, ...], ...]
+    controller_gen: tuple[tuple[int, ...], ...]
+    svc_bus: tuple[tuple[int, ...], ...]
+    svc_port: tuple[tuple[int, ...], ...]
+    source_gen: tuple[int, ...]
+    source_bus: tuple[int, ...]
+    gen_bus: tuple[int, ...]
+    n_gen: int
+    n_bus: int
+
+
+def make_layout(system: System, machines, controllers, svcs, sources) -> Layout:
+    gb = np.asarray(system.generators.bus)
+    mg = [tuple(int(i) for i in np.asarray(m.gen)) for m in machines]
+    sb = [tuple(int(i) for i in np.asarray(s.bus)) for s in svcs]
+    buses = [gb[list(g)] for g in mg] + [np.array(b, dtype=np.int64) for b in sb]
+    ports = tuple(int(b) for b in np.unique(np.concatenate(buses))) if buses else ()
+    pmap = {b: k for k, b in enumerate(ports)}
+    src = tuple(int(i) for i in np.asarray(sources))
+    return Layout(
+        ports=ports,
+        machine_gen=tuple(mg),
+        machine_port=tuple(tuple(pmap[int(gb[i])] for i in g) for g in mg),
+        controller_gen=tuple(
+            tuple(int(i) for i in np.asarray(c.gen)) for c in controllers
+        ),
+        svc_bus=tuple(sb),
+        svc_port=tuple(tuple(pmap[b] for b in g) for g in sb),
+        source_gen=src,
+        source_bus=tuple(int(gb[i]) for i in src),
+        gen_bus=tuple(int(b) for b in gb),
+        n_gen=len(gb),
+        n_bus=system.n_bus,
+    )
+
+
 class Case(eqx.Module):
     """A multi-machine case: the network and its device groups.
 
@@ -45,21 +92,23 @@ class Case(eqx.Module):
     machines: tuple[AbstractMachine, ...]
     controllers: tuple[AbstractController, ...] = ()
     svcs: tuple[AbstractShuntDevice, ...] = ()
-    sources: np.ndarray = eqx.field(default_factory=lambda: np.zeros(0, np.int64))
+    sources: tuple[int, ...] = eqx.field(static=True, default=())
     name: str = eqx.field(static=True, default="")
+    layout: Layout = eqx.field(static=True, default=None)
+
+    def __post_init__(self):
+        if self.layout is None:
+            lay = make_layout(
+                self.system, self.machines, self.controllers, self.svcs, self.sources
+            )
+            object.__setattr__(self, "layout", lay)
 
     @property
     def n_gen(self) -> int:
-        return len(self.system.generators.bus)
-
-    def ordered_controllers(self):
-        return sorted(self.controllers, key=lambda c: _ORDER.get(c.output, 3))
+        return self.layout.n_gen
 
     def ports(self) -> np.ndarray:
-        gb = np.asarray(self.system.generators.bus)
-        buses = [gb[np.asarray(m.gen)] for m in self.machines]
-        buses += [np.asarray(s.bus) for s in self.svcs]
-        return np.unique(np.concatenate(buses)) if buses else np.zeros(0, np.int64)
+        return np.asarray(self.layout.ports, dtype=np.int64)
 
 
 class Operating(eqx.Module):
@@ -92,15 +141,16 @@ def initialize(case: Case, vm, va, p_gen, q_gen) -> Operating:
     sys_ = case.system
     s_base = sys_.s_base
     v = vm * jnp.exp(1j * va)
-    gbus = np.asarray(sys_.generators.bus)
+    lay = case.layout
+    gbus = np.asarray(lay.gen_bus, dtype=np.int64)
     n_gen = case.n_gen
     s_gen = p_gen + 1j * q_gen
     gen_y = jnp.zeros(n_gen, dtype=jnp.complex128)
     held, blocks = [], []
     meas = {k: jnp.zeros(n_gen) for k in MEASUREMENTS}
     cmd = {"Efd": jnp.zeros(n_gen), "Pm": jnp.zeros(n_gen), "Vs": jnp.zeros(n_gen)}
-    for m in case.machines:
-        g = np.asarray(m.gen)
+    for m, gt in zip(case.machines, lay.machine_gen, strict=True):
+        g = np.asarray(gt, dtype=np.int64)
         x0, h = m.init(v[gbus[g]], s_gen[g], s_base)
         _, y = m.norton(x0, h, s_base)
         gen_y = gen_y.at[g].set(y)
@@ -113,20 +163,20 @@ def initialize(case: Case, vm, va, p_gen, q_gen) -> Operating:
             cmd[k] = cmd[k].at[g].set(h[k])
     refs = []
     ctrl_blocks = []
-    for c in case.controllers:
-        g = np.asarray(c.gen)
+    for c, gt in zip(case.controllers, lay.controller_gen, strict=True):
+        g = np.asarray(gt, dtype=np.int64)
         local = {k: meas[k][g] for k in meas} | {"Vs": cmd["Vs"][g]}
         x0, ref = c.init(cmd[c.output][g], local)
         refs.append(ref)
         ctrl_blocks.append(x0)
     svc_refs, svc_blocks = [], []
-    for s in case.svcs:
-        b = np.asarray(s.bus)
+    for s, bt in zip(case.svcs, lay.svc_bus, strict=True):
+        b = np.asarray(bt, dtype=np.int64)
         q = jnp.zeros(sys_.n_bus).at[gbus].add(jnp.imag(s_gen))[b]
         x0, ref = s.init(v[b], q, s_base)
         svc_refs.append(ref)
         svc_blocks.append(x0)
-    src = np.asarray(case.sources, dtype=np.int64)
+    src = np.asarray(lay.source_gen, dtype=np.int64)
     grid = Grid(
         system=sys_,
         bus_y=_load_y(sys_, vm),
@@ -161,50 +211,42 @@ def unpack(case: Case, op: Operating, y):
     return out[:nm], out[nm : nm + nc], out[nm + nc :]
 
 
-def port_index(case: Case) -> dict:
-    """Generator position -> port position, bus position -> port position."""
-    ports = case.ports()
-    return {int(b): k for k, b in enumerate(ports)}
-
-
 def evaluate(case: Case, op: Operating, mats: StageMatrices, stage, y):
     """(dy/dt, measurements over all generators, net port currents) in stage
     `stage`; the bus voltages are then Z[stage] i + c_all[stage]."""
     sys_ = case.system
     s_base = sys_.s_base
-    gbus = np.asarray(sys_.generators.bus)
-    pmap = port_index(case)
+    lay = case.layout
     xm, xc, xs = unpack(case, op, y)
     A, c = mats.A[stage], mats.c[stage]
     gst = mats.gen_status[stage]
-    n_port = len(pmap)
+    n_port = len(lay.ports)
     i_p = jnp.zeros(n_port, dtype=jnp.complex128)
-    for m, x, h in zip(case.machines, xm, op.held, strict=True):
-        g = np.asarray(m.gen)
+    for k, (m, x, h) in enumerate(zip(case.machines, xm, op.held, strict=True)):
+        g = np.asarray(lay.machine_gen[k], dtype=np.int64)
         i_n, _ = m.norton(x, h, s_base)
-        pidx = np.array([pmap[int(b)] for b in gbus[g]], dtype=np.int64)
+        pidx = np.asarray(lay.machine_port[k], dtype=np.int64)
         i_p = i_p.at[pidx].add(i_n * gst[g])
     y_sh = None
     if case.svcs:
         y_sh = jnp.zeros(n_port, dtype=jnp.complex128)
-        for s, x in zip(case.svcs, xs, strict=True):
-            pidx = np.array([pmap[int(b)] for b in np.asarray(s.bus)], dtype=np.int64)
+        for k, (s, x) in enumerate(zip(case.svcs, xs, strict=True)):
+            pidx = np.asarray(lay.svc_port[k], dtype=np.int64)
             y_sh = y_sh.at[pidx].add(s.admittance(x, s_base))
     v_p = solve_ports(A, c, i_p, y_sh)
     n_gen = case.n_gen
     meas = {k: jnp.zeros(n_gen) for k in MEASUREMENTS}
     vgen = []
-    for m, x, h in zip(case.machines, xm, op.held, strict=True):
-        g = np.asarray(m.gen)
-        pidx = np.array([pmap[int(b)] for b in gbus[g]], dtype=np.int64)
-        vt = v_p[pidx]
+    for k, (m, x, h) in enumerate(zip(case.machines, xm, op.held, strict=True)):
+        g = np.asarray(lay.machine_gen[k], dtype=np.int64)
+        vt = v_p[np.asarray(lay.machine_port[k], dtype=np.int64)]
         vgen.append(vt)
         for k, val in m.measure(x, vt, h, s_base).items():
             if k in meas:
                 meas[k] = meas[k].at[g].set(val)
     cmd = {"Vs": jnp.zeros(n_gen), "Efd": jnp.zeros(n_gen), "Pm": jnp.zeros(n_gen)}
-    for m, h in zip(case.machines, op.held, strict=True):
-        g = np.asarray(m.gen)
+    for gt, h in zip(lay.machine_gen, op.held, strict=True):
+        g = np.asarray(gt, dtype=np.int64)
         for k in ("Efd", "Pm"):
             cmd[k] = cmd[k].at[g].set(h[k])
     dctrl = [None] * len(case.controllers)
@@ -214,18 +256,20 @@ def evaluate(case: Case, op: Operating, mats: StageMatrices, stage, y):
     )
     for i in order:
         ctl, x, ref = case.controllers[i], xc[i], op.refs[i]
-        g = np.asarray(ctl.gen)
+        g = np.asarray(lay.controller_gen[i], dtype=np.int64)
         local = {k: meas[k][g] for k in meas} | {"Vs": cmd["Vs"][g]}
         cmd[ctl.output] = cmd[ctl.output].at[g].set(ctl.out(x, local, ref))
         dctrl[i] = ctl.rhs(x, local, ref)
     dm = []
-    for m, x, h, vt in zip(case.machines, xm, op.held, vgen, strict=True):
-        g = np.asarray(m.gen)
+    for k, (m, x, h, vt) in enumerate(
+        zip(case.machines, xm, op.held, vgen, strict=True)
+    ):
+        g = np.asarray(lay.machine_gen[k], dtype=np.int64)
         local = {k: cmd[k][g] for k in ("Efd", "Pm")}
         dm.append(m.rhs(x, vt, local, h, s_base) * gst[g])
     ds = []
-    for s, x, ref in zip(case.svcs, xs, op.svc_refs, strict=True):
-        pidx = np.array([pmap[int(b)] for b in np.asarray(s.bus)], dtype=np.int64)
+    for k, (s, x, ref) in enumerate(zip(case.svcs, xs, op.svc_refs, strict=True)):
+        pidx = np.asarray(lay.svc_port[k], dtype=np.int64)
         ds.append(s.rhs(x, jnp.abs(v_p[pidx]), jnp.zeros(len(pidx)), ref))
     blocks = dm + dctrl + ds
     dy = jnp.concatenate([b.reshape(-1) for b in blocks]) if blocks else jnp.zeros(0)

@@ -51,8 +51,8 @@ class GridTrajectory(eqx.Module):
 def coi_weights(case: Case, gen_status) -> Float[Array, " n_gen"]:
     """Inertia weights H * mbase of the machines in service (zero elsewhere)."""
     w = jnp.zeros(case.n_gen)
-    for m in case.machines:
-        g = np.asarray(m.gen)
+    for m, gt in zip(case.machines, case.layout.machine_gen, strict=True):
+        g = np.asarray(gt, dtype=np.int64)
         h = getattr(m, "H", jnp.ones(len(g)))
         w = w.at[g].set(jnp.asarray(h) * jnp.asarray(m.mbase))
     return w * gen_status
@@ -75,8 +75,8 @@ def angle_spread(case: Case, delta, gen_status):
 
 def _machine_mask(case: Case):
     mask = np.zeros(case.n_gen, dtype=bool)
-    for m in case.machines:
-        mask[np.asarray(m.gen)] = True
+    for gt in case.layout.machine_gen:
+        mask[list(gt)] = True
     return jnp.asarray(mask)
 
 
@@ -127,8 +127,7 @@ def simulate_case(
     )
     ys = sol.ys[:-1]
     t_last = sol.ts[-1]
-    stopped = sol.event_mask if sol.event_mask is not None else jnp.array(False)
-    stopped = jnp.asarray(stopped)
+    stopped = sol.result == dfx.RESULTS.event_occurred
     return _record(case, op, mats, t_sw, ts, ys, stopped, t_last, sol)
 
 
@@ -137,8 +136,8 @@ def _delta_of(case, op, y):
 
     xm, _, _ = unpack(case, op, y)
     d = jnp.zeros(case.n_gen)
-    for m, x in zip(case.machines, xm, strict=True):
-        d = d.at[np.asarray(m.gen)].set(x[m.delta_index])
+    for m, x, gt in zip(case.machines, xm, case.layout.machine_gen, strict=True):
+        d = d.at[np.asarray(gt, dtype=np.int64)].set(x[m.delta_index])
     return d
 
 
@@ -168,4 +167,22 @@ def _record(case, op, mats, t_sw, ts, ys, stopped, t_last, sol):
         t_unstable=jnp.where(stopped, t_last, jnp.inf),
         result=sol.result._value if hasattr(sol.result, "_value") else sol.result,
         y_final=sol.ys[-1],
+    )
+
+
+@eqx.filter_jit
+def simulate_jit(case: Case, op: Operating, events=(), **options) -> GridTrajectory:
+    """`simulate_case`, jitted (the case and operating point traced, `options`
+    static)."""
+    return simulate_case(case, op, events, **options)
+
+
+@eqx.filter_jit
+def simulate_batch(case: Case, op: Operating, events, **options) -> GridTrajectory:
+    """`simulate_case` over a batch of scenarios: `events` has a leading batch axis
+    on every leaf that varies (scalars are shared); the case and operating point are
+    shared. Returns a GridTrajectory with a leading batch axis."""
+    axes = jax.tree_util.tree_map(lambda x: 0 if jnp.ndim(x) else None, events)
+    return jax.vmap(lambda ev: simulate_case(case, op, ev, **options), in_axes=(axes,))(
+        events
     )
