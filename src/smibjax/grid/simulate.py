@@ -30,8 +30,9 @@ class GridTrajectory(eqx.Module):
     field voltage Efd and mechanical power Pm commands, electrical power Pe (pu
     machine base), terminal voltage (pu), stabilizer output Vs; per bus: voltage
     magnitude (pu). `stable`: no loss of synchronism within the horizon;
-    `t_unstable`: when synchronism was lost (inf if never); `result`: the solver's
-    diffrax result code (0 = successful)."""
+    `t_unstable`: when synchronism was lost (inf if never); `exhausted`: the step
+    budget ran out first (neither verdict holds); `y_final`: the state at the end
+    (t_end, or where synchronism was lost)."""
 
     ts: Float[Array, " T"]
     delta: Float[Array, "T n_gen"]
@@ -44,7 +45,8 @@ class GridTrajectory(eqx.Module):
     v_bus: Float[Array, "T n_bus"]
     stable: Bool[Array, ""]
     t_unstable: Float[Array, ""]
-    result: Array
+    exhausted: Bool[Array, ""]
+    n_steps: Array
     y_final: Float[Array, " n_state"]
 
 
@@ -125,10 +127,12 @@ def simulate_case(
         max_steps=max_steps,
         throw=False,
     )
+    # SaveAt(ts, t1): the grid samples reached, the final state (t_end or the time
+    # synchronism was lost), then inf padding
+    k = jnp.sum(jnp.isfinite(sol.ts)) - 1
     ys = sol.ys[:-1]
-    t_last = sol.ts[-1]
     stopped = sol.result == dfx.RESULTS.event_occurred
-    return _record(case, op, mats, t_sw, ts, ys, stopped, t_last, sol)
+    return _record(case, op, mats, t_sw, ts, ys, stopped, sol.ts[k], sol, sol.ys[k])
 
 
 def _delta_of(case, op, y):
@@ -141,7 +145,7 @@ def _delta_of(case, op, y):
     return d
 
 
-def _record(case, op, mats, t_sw, ts, ys, stopped, t_last, sol):
+def _record(case, op, mats, t_sw, ts, ys, stopped, t_last, sol, y_last):
     def one(t, y):
         stage = jnp.sum(t >= t_sw) if t_sw.shape[0] else 0
         _, meas, i_net = evaluate(case, op, mats, stage, y)
@@ -165,8 +169,9 @@ def _record(case, op, mats, t_sw, ts, ys, stopped, t_last, sol):
         v_bus=vbus + nan,
         stable=~stopped & (sol.result == dfx.RESULTS.successful),
         t_unstable=jnp.where(stopped, t_last, jnp.inf),
-        result=sol.result._value if hasattr(sol.result, "_value") else sol.result,
-        y_final=sol.ys[-1],
+        exhausted=sol.result == dfx.RESULTS.max_steps_reached,
+        n_steps=sol.stats["num_accepted_steps"],
+        y_final=y_last,
     )
 
 
