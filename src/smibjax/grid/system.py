@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import equinox as eqx
 import numpy as np
-from jaxtyping import Array, Float, Int
+from jaxtyping import Array, Complex, Float, Int
 
 __all__ = [
     "PQ",
@@ -101,7 +101,9 @@ class Generators(eqx.Module):
     """Generators' power-flow data at bus position `bus`: scheduled active power p
     (pu), reactive power q (pu, the raw file's QG; the power flow's start), voltage set
     point v_set (pu), reactive limits qmin, qmax (pu; not enforced by the power flow),
-    machine base mbase (MVA) and status (1 in service)."""
+    machine base mbase (MVA), status (1 in service) and the source impedance
+    zsource = ZR + j ZX of the raw file (pu on mbase; GENCLS's X'd and every model's
+    armature resistance come from it, as in PSS/E; empty = zero)."""
 
     bus: Int[np.ndarray, " n_gen"] = eqx.field(converter=_i)
     p: Float[Array, " n_gen"] = eqx.field(converter=_f)
@@ -112,6 +114,14 @@ class Generators(eqx.Module):
     mbase: Float[Array, " n_gen"] = eqx.field(converter=_f)
     status: Float[Array, " n_gen"] = eqx.field(converter=_f)
     ident: tuple[str, ...] = eqx.field(static=True, default=())
+    zsource: Complex[np.ndarray, " n_gen"] = eqx.field(
+        converter=lambda z: np.asarray(z, dtype=np.complex128), default=()
+    )
+
+    def source_impedance(self) -> np.ndarray:
+        """ZR + j ZX per generator (pu machine base); zeros if none was given."""
+        z = np.asarray(self.zsource, dtype=np.complex128)
+        return z if z.size else np.zeros(len(self.bus), dtype=np.complex128)
 
 
 class System(eqx.Module):

@@ -32,6 +32,20 @@ class GENCLS(AbstractMachine):
 
     state_names = ("delta", "omega")
 
+    @classmethod
+    def from_params(cls, gen, params, *, mbase, zsource, f_base=60.0):
+        """From dyr records (H, D) and the raw file's source impedance (X'd = ZX,
+        Ra = ZR on the machine base)."""
+        return cls(
+            gen=gen,
+            mbase=mbase,
+            H=[p["H"] for p in params],
+            D=[p["D"] for p in params],
+            xdp=np.imag(zsource),
+            ra=np.real(zsource),
+            f_base=f_base,
+        )
+
     def _z(self):
         return self.ra + 1j * self.xdp
 

@@ -1,0 +1,188 @@
+"""Cases as data: a PSS/E raw + dyr pair (or a built-in case name) becomes a `Case`:
+the network (`System`) and its device groups, one group per dyr model, each group
+an array over its devices.
+
+Built-in cases (`BUILTIN`) live in `smibjax/grid/cases/` as raw + dyr files. Which
+generator a record belongs to is the (bus number, machine id) pair, as in PSS/E.
+Conventions: a GENCLS with H = 0 is an infinite bus (PSS/E's convention), held at its
+power-flow voltage (its source impedance is ignored: the bus voltage is fixed); a
+generator with a CSVGN1 record is an SVC (PSS/E models SVCs as generators), not a
+machine.
+"""
+
+from __future__ import annotations
+
+from collections import defaultdict
+from importlib import resources
+from pathlib import Path
+
+import numpy as np
+
+from .devices.gencls import GENCLS
+from .loop import Case
+
+__all__ = ["BUILTIN", "load_case", "build_case", "case_files", "SUPPORTED"]
+
+# name -> (raw file, dyr file) in smibjax/grid/cases/
+BUILTIN = {
+    "kundur": ("kundur.raw", "kundur.dyr"),
+    "kundur-gencls": ("kundur.raw", "kundur_gencls.dyr"),
+    "kundur-nopss": ("kundur.raw", "kundur_nopss.dyr"),
+    "ieee39": ("ieee39.raw", "ieee39.dyr"),
+    "ieee39-pss": ("ieee39.raw", "ieee39_pss.dyr"),
+    "ieee39-gencls": ("ieee39.raw", "ieee39_gencls.dyr"),
+    "smib": ("smib.raw", "smib.dyr"),
+}
+
+MACHINES = ("GENCLS", "GENTRA", "GENROU")
+EXCITERS = ("SEXS", "IEEEX1", "EXDC2", "EXST1")
+STABILIZERS = ("IEEEST", "STAB1")
+GOVERNORS = ("TGOV1",)
+SVCS = ("CSVGN1",)
+SUPPORTED = MACHINES + EXCITERS + STABILIZERS + GOVERNORS + SVCS
+
+
+class CaseError(ValueError):
+    """A case that cannot be built (one line: what and where)."""
+
+
+def case_files(name: str) -> tuple[Path, Path]:
+    """The raw and dyr files of a built-in case."""
+    if name not in BUILTIN:
+        raise CaseError(
+            f"case {name!r} is not built in: choose one of {', '.join(BUILTIN)} "
+            "or give a .raw file with --dyr"
+        )
+    root = resources.files("smibjax.grid") / "cases"
+    raw, dyr = BUILTIN[name]
+    return Path(str(root / raw)), Path(str(root / dyr))
+
+
+def load_case(name_or_raw: str | Path, dyr: str | Path | None = None) -> Case:
+    """A built-in case by name, or a raw file with its dyr file."""
+    from .psse import read_dyr, read_raw, to_system
+
+    if dyr is None and str(name_or_raw) in BUILTIN:
+        raw_path, dyr_path = case_files(str(name_or_raw))
+        name = str(name_or_raw)
+    else:
+        if dyr is None:
+            raise CaseError(f"{name_or_raw}: a raw file needs its dyr file (--dyr)")
+        raw_path, dyr_path = Path(name_or_raw), Path(dyr)
+        name = raw_path.stem
+    system = to_system(read_raw(raw_path))
+    records = read_dyr(dyr_path)
+    return build_case(system, records, name=name)
+
+
+def _gen_key_index(system):
+    gens = system.generators
+    buses = np.asarray(system.buses.number)[np.asarray(gens.bus)]
+    idents = gens.ident or tuple("1" for _ in buses)
+    return {(int(b), str(i).strip()): k for k, (b, i) in enumerate(zip(buses, idents))}
+
+
+def _group(cls, gens, params, **extra):
+    """A device group from dyr parameter dicts (PSS/E names) at generator positions."""
+    if hasattr(cls, "from_params"):
+        return cls.from_params(gens, params, **extra)
+    raise CaseError(f"{cls.__name__} cannot be built from dyr records")
+
+
+def _model_class(model: str):
+    from . import devices
+
+    return getattr(devices, model)
+
+
+def build_case(system, records, name: str = "") -> Case:
+    """A `Case` from a `System` and dyr records (`psse.read_dyr`)."""
+    keys = _gen_key_index(system)
+    by_model = defaultdict(list)
+    for r in records:
+        key = (int(r.bus), str(r.ident).strip())
+        if key not in keys:
+            raise CaseError(
+                f"{r.file}:{r.line}: {r.model} for generator {key[1]!r} at bus "
+                f"{key[0]}: no such generator in the raw file"
+            )
+        by_model[r.model].append((keys[key], r))
+    gens = system.generators
+    mbase = np.asarray(gens.mbase)
+    zsource = gens.source_impedance()
+    machines, controllers, svcs, sources = [], [], [], []
+    have_machine = set()
+    for model in MACHINES:
+        entries = by_model.get(model, [])
+        if model == "GENCLS":
+            inf = [(g, r) for g, r in entries if r.params["H"] == 0]
+            entries = [(g, r) for g, r in entries if r.params["H"] != 0]
+            sources += [g for g, _ in inf]
+            have_machine |= {g for g, _ in inf}
+        if not entries:
+            continue
+        pos = [g for g, _ in entries]
+        for g, r in entries:
+            if g in have_machine:
+                raise CaseError(
+                    f"{r.file}:{r.line}: a second machine record for generator "
+                    f"{r.ident!r} at bus {r.bus}"
+                )
+            have_machine.add(g)
+        params = [r.params for _, r in entries]
+        cls = _model_class(model)
+        machines.append(
+            cls.from_params(
+                pos,
+                params,
+                mbase=mbase[pos],
+                zsource=zsource[pos],
+                f_base=system.f_base,
+            )
+        )
+    for model in SVCS:
+        entries = by_model.get(model, [])
+        if entries:
+            pos = [g for g, _ in entries]
+            have_machine |= set(pos)
+            bus = np.asarray(gens.bus)[pos]
+            svcs.append(
+                _model_class(model).from_params(
+                    bus, [r.params for _, r in entries], mbase=mbase[pos]
+                )
+            )
+    for model in STABILIZERS + EXCITERS + GOVERNORS:
+        entries = by_model.get(model, [])
+        if not entries:
+            continue
+        for g, r in entries:
+            if g not in have_machine:
+                raise CaseError(
+                    f"{r.file}:{r.line}: {model} for generator {r.ident!r} at bus "
+                    f"{r.bus} has no machine record"
+                )
+        pos = [g for g, _ in entries]
+        controllers.append(
+            _model_class(model).from_params(pos, [r.params for _, r in entries])
+        )
+    unknown = sorted(set(by_model) - set(SUPPORTED))
+    if unknown:
+        raise CaseError(
+            f"unsupported dyr model {unknown[0]}: supported are {', '.join(SUPPORTED)}"
+        )
+    status = np.asarray(gens.status)
+    nb = np.asarray(system.buses.number)[np.asarray(gens.bus)]
+    for k in range(len(status)):
+        if status[k] > 0 and k not in have_machine:
+            raise CaseError(
+                f"generator {gens.ident[k] if gens.ident else '1'!r} at bus {nb[k]} "
+                "is in service but has no machine record in the dyr file"
+            )
+    return Case(
+        system=system,
+        machines=tuple(machines),
+        controllers=tuple(controllers),
+        svcs=tuple(svcs),
+        sources=tuple(sorted(sources)),
+        name=name,
+    )
