@@ -18,7 +18,6 @@ from pathlib import Path
 
 import numpy as np
 
-from .devices.gencls import GENCLS
 from .loop import Case
 
 __all__ = ["BUILTIN", "load_case", "build_case", "case_files", "SUPPORTED"]
@@ -79,7 +78,10 @@ def _gen_key_index(system):
     gens = system.generators
     buses = np.asarray(system.buses.number)[np.asarray(gens.bus)]
     idents = gens.ident or tuple("1" for _ in buses)
-    return {(int(b), str(i).strip()): k for k, (b, i) in enumerate(zip(buses, idents))}
+    return {
+        (int(b), str(i).strip()): k
+        for k, (b, i) in enumerate(zip(buses, idents, strict=True))
+    }
 
 
 def _group(cls, gens, params, **extra):
