@@ -211,9 +211,40 @@ def unpack(case: Case, op: Operating, y):
     return out[:nm], out[nm : nm + nc], out[nm + nc :]
 
 
-def evaluate(case: Case, op: Operating, mats: StageMatrices, stage, y):
+def gen_names(case: Case) -> tuple[str, ...]:
+    """'bus:id' per generator (PSS/E bus number and machine id)."""
+    sys_ = case.system
+    nums = np.asarray(sys_.buses.number)[np.asarray(case.layout.gen_bus, dtype=int)]
+    ids = sys_.generators.ident or ("1",) * len(nums)
+    return tuple(f"{int(b)}:{str(i).strip()}" for b, i in zip(nums, ids, strict=True))
+
+
+def state_labels(case: Case) -> tuple[tuple[str, str, str], ...]:
+    """(device group model, generator or bus name, state name) of every entry of the
+    flat state, in order."""
+    names = gen_names(case)
+    bus_nums = np.asarray(case.system.buses.number)
+    out = []
+    lay = case.layout
+    groups = (
+        [(m, lay.machine_gen[k], "gen") for k, m in enumerate(case.machines)]
+        + [(c, lay.controller_gen[k], "gen") for k, c in enumerate(case.controllers)]
+        + [(s, lay.svc_bus[k], "bus") for k, s in enumerate(case.svcs)]
+    )
+    for dev, where, kind in groups:
+        label = [names[i] if kind == "gen" else str(int(bus_nums[i])) for i in where]
+        for st in dev.state_names:
+            out += [(type(dev).__name__, lab, st) for lab in label]
+    return tuple(out)
+
+
+def evaluate(case: Case, op: Operating, mats: StageMatrices, stage, y, u=None):
     """(dy/dt, measurements over all generators, net port currents) in stage
-    `stage`; the bus voltages are then Z[stage] i + c_all[stage]."""
+    `stage`; the bus voltages are then Z[stage] i + c_all[stage]. `u`: optional
+    additive inputs by name over all generators: "Efd" and "Pm" (added to the
+    machines' commands), "Vs" (added to the stabilizer signal the exciters read);
+    "Bsvc" over all buses (added to the SVCs' external command)."""
+    u = {} if u is None else u
     sys_ = case.system
     s_base = sys_.s_base
     lay = case.layout
@@ -257,7 +288,8 @@ def evaluate(case: Case, op: Operating, mats: StageMatrices, stage, y):
     for i in order:
         ctl, x, ref = case.controllers[i], xc[i], op.refs[i]
         g = np.asarray(lay.controller_gen[i], dtype=np.int64)
-        local = {k: meas[k][g] for k in meas} | {"Vs": cmd["Vs"][g]}
+        vs = cmd["Vs"][g] + (u["Vs"][g] if "Vs" in u else 0.0)
+        local = {k: meas[k][g] for k in meas} | {"Vs": vs}
         cmd[ctl.output] = cmd[ctl.output].at[g].set(ctl.out(x, local, ref))
         dctrl[i] = ctl.rhs(x, local, ref)
     dm = []
@@ -265,12 +297,13 @@ def evaluate(case: Case, op: Operating, mats: StageMatrices, stage, y):
         zip(case.machines, xm, op.held, vgen, strict=True)
     ):
         g = np.asarray(lay.machine_gen[k], dtype=np.int64)
-        local = {k: cmd[k][g] for k in ("Efd", "Pm")}
+        local = {k: cmd[k][g] + (u[k][g] if k in u else 0.0) for k in ("Efd", "Pm")}
         dm.append(m.rhs(x, vt, local, h, s_base) * gst[g])
     ds = []
     for k, (s, x, ref) in enumerate(zip(case.svcs, xs, op.svc_refs, strict=True)):
         pidx = np.asarray(lay.svc_port[k], dtype=np.int64)
-        ds.append(s.rhs(x, jnp.abs(v_p[pidx]), jnp.zeros(len(pidx)), ref))
+        ext = u["Bsvc"][np.asarray(lay.svc_bus[k])] if "Bsvc" in u else 0.0
+        ds.append(s.rhs(x, jnp.abs(v_p[pidx]), jnp.zeros(len(pidx)) + ext, ref))
     blocks = dm + dctrl + ds
     dy = jnp.concatenate([b.reshape(-1) for b in blocks]) if blocks else jnp.zeros(0)
     meas = meas | {"Efd": cmd["Efd"], "Pm": cmd["Pm"], "Vs": cmd["Vs"]}
