@@ -1,0 +1,95 @@
+"""Metrics of a multi-machine run (`GridTrajectory`).
+
+Stability: no machine's angle departs from the centre of inertia (COI; the
+synchronous frame where the case has an infinite bus) by more than pi within the
+horizon (ANDES's criterion is a 180 degree spread between machines, which is at most
+twice ours). Settling and overshoot are of the COI-referred angles and of the speeds,
+from the first event:
+- `settling_angle`: the time from the first event after which every COI angle stays
+  within `band_angle` (rad) of its final value (inf if it never does, or unstable);
+- `settling_speed`: the same for the speed deviations within `band_speed` (pu) of 0;
+- `overshoot`: the largest |COI angle - its final value| after the first event (rad);
+- `max_spread`: the largest |angle - COI| over the run (rad);
+- `v_min`, `v_max`: bus voltage magnitude range after the first event (pu);
+- `efd_max`: the largest field voltage (pu).
+"""
+
+from __future__ import annotations
+
+import equinox as eqx
+import jax.numpy as jnp
+from jaxtyping import Array, Bool, Float
+
+from .loop import Case
+from .simulate import GridTrajectory, coi_angles
+
+__all__ = ["GridMetrics", "grid_metrics"]
+
+
+class GridMetrics(eqx.Module):
+    stable: Bool[Array, "*b"]
+    t_unstable: Float[Array, "*b"]
+    settling_angle: Float[Array, "*b"]
+    settling_speed: Float[Array, "*b"]
+    overshoot: Float[Array, "*b"]
+    max_spread: Float[Array, "*b"]
+    v_min: Float[Array, "*b"]
+    v_max: Float[Array, "*b"]
+    efd_max: Float[Array, "*b"]
+    exhausted: Bool[Array, "*b"]
+
+    FIELDS = (
+        "stable",
+        "t_unstable",
+        "settling_angle",
+        "settling_speed",
+        "overshoot",
+        "max_spread",
+        "v_min",
+        "v_max",
+        "efd_max",
+        "exhausted",
+    )
+
+
+def _settling(ts, err, band, t0):
+    """Time from t0 after which err (T, n) stays below band in every column."""
+    out = jnp.any(err > band, axis=-1)
+    last = jnp.max(jnp.where(out, ts, -jnp.inf))
+    return jnp.where(out[-1], jnp.inf, jnp.maximum(last - t0, 0.0))
+
+
+def grid_metrics(
+    case: Case,
+    tr: GridTrajectory,
+    t_first: Float[Array, ""],
+    band_angle: float = 0.01,
+    band_speed: float = 1e-4,
+) -> GridMetrics:
+    """Metrics of one run whose first event is at t_first (s); vmap for a batch."""
+    mask = jnp.zeros(case.n_gen, dtype=bool)
+    for gt in case.layout.machine_gen:
+        mask = mask.at[jnp.asarray(gt)].set(True)
+    status = jnp.ones(case.n_gen) * mask
+    ok = tr.stable
+    rel = coi_angles(case, jnp.nan_to_num(tr.delta), status)
+    after = tr.ts >= t_first
+    fin_rel = rel[-1]
+    d_err = jnp.where(mask, jnp.abs(rel - fin_rel), 0.0) * after[:, None]
+    w_err = jnp.where(mask, jnp.abs(jnp.nan_to_num(tr.omega)), 0.0) * after[:, None]
+    s_a = jnp.where(ok, _settling(tr.ts, d_err, band_angle, t_first), jnp.inf)
+    s_w = jnp.where(ok, _settling(tr.ts, w_err, band_speed, t_first), jnp.inf)
+    spread = jnp.nanmax(jnp.where(mask, jnp.abs(rel), 0.0))
+    vb = jnp.where(after[:, None], tr.v_bus, jnp.nan)
+    return GridMetrics(
+        stable=ok,
+        t_unstable=tr.t_unstable,
+        settling_angle=s_a,
+        settling_speed=s_w,
+        overshoot=jnp.where(ok, jnp.max(d_err), jnp.nan),
+        max_spread=spread,
+        v_min=jnp.nanmin(vb),
+        v_max=jnp.nanmax(vb),
+        efd_max=jnp.nanmax(jnp.where(mask, tr.efd, -jnp.inf)),
+        exhausted=tr.exhausted,
+    )
