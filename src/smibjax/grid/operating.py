@@ -1,0 +1,85 @@
+"""The operating point of a case: the power flow, then every device at equilibrium.
+
+`operating_point` is the host-side entry (it raises `PowerFlowError` with one line);
+`operating_point_traced` the jittable one (load and generation factors may be traced,
+e.g. drawn per scenario; check `pf.converged`)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .loop import Case, Operating, initialize
+from .powerflow import (
+    PowerFlowResult,
+    power_flow,
+    scale_operating_point,
+    solve_power_flow,
+)
+
+__all__ = ["operating_point", "operating_point_traced", "check_islanding"]
+
+
+def operating_point(
+    case: Case, load_factor: float = 1.0, gen_factor: float = 1.0
+) -> tuple[Operating, PowerFlowResult]:
+    """(Operating, power flow) of `case` with its loads and non-slack generation
+    scaled by the factors (1: the raw file's)."""
+    system = case.system
+    if load_factor != 1.0 or gen_factor != 1.0:
+        system = scale_operating_point(system, load_factor, gen_factor)
+    pf = solve_power_flow(system)
+    op = initialize(case, pf.vm, pf.va, pf.p_gen, pf.q_gen)
+    return op, pf
+
+
+def operating_point_traced(case: Case, load_factor=1.0, gen_factor=1.0):
+    """`operating_point` without the host check: jittable and vmappable over the
+    factors; differentiable through the power flow (implicit function theorem)."""
+    system = scale_operating_point(case.system, load_factor, gen_factor)
+    pf = power_flow(system)
+    op = initialize(case, pf.vm, pf.va, pf.p_gen, pf.q_gen)
+    return op, pf
+
+
+def check_islanding(case: Case, events) -> None:
+    """ValueError (one line) if the branch trips among concrete `events`, applied
+    in order, split the network into islands."""
+    from .events import BranchClose, BranchTrip
+
+    br = case.system.branches
+    status = np.asarray(br.status).copy()
+    nums = np.asarray(case.system.buses.number)
+    for e in events:
+        if isinstance(e, BranchTrip | BranchClose):
+            try:
+                k = int(e.branch)
+            except TypeError:  # traced: nothing to check
+                return
+            status[k] = 0.0 if isinstance(e, BranchTrip) else 1.0
+            if isinstance(e, BranchTrip):
+                comp = _components(case.system.n_bus, br, status)
+                if len(set(comp)) > 1:
+                    a, b = int(nums[br.fr[k]]), int(nums[br.to[k]])
+                    lone = [
+                        int(nums[i]) for i in range(len(comp)) if comp[i] != comp[0]
+                    ]
+                    raise ValueError(
+                        f"tripping branch {a}-{b} islands the system (buses "
+                        f"{lone[:8]}{' ...' if len(lone) > 8 else ''} separate)"
+                    )
+
+
+def _components(n, br, status):
+    parent = list(range(n))
+
+    def find(i):
+        while parent[i] != i:
+            parent[i] = parent[parent[i]]
+            i = parent[i]
+        return i
+
+    for k in range(len(status)):
+        if status[k] > 0:
+            a, b = find(int(br.fr[k])), find(int(br.to[k]))
+            parent[a] = b
+    return [find(i) for i in range(n)]
