@@ -31,6 +31,7 @@ BUILTIN = {
     "ieee39-pss": ("ieee39.raw", "ieee39_pss.dyr"),
     "ieee39-gencls": ("ieee39.raw", "ieee39_gencls.dyr"),
     "smib": ("smib.raw", "smib.dyr"),
+    "smib-gencls": ("smib.raw", "smib_gencls.dyr"),
 }
 
 MACHINES = ("GENCLS", "GENTRA", "GENROU")
