@@ -325,10 +325,13 @@ def test_the_andes_fixture_is_the_scripts_case(andes_run):
 def test_genrou_follows_andes_through_a_terminal_fault(andes_run):
     """Rotor angle, speed and the four fluxes over 5 s (fault 0.5-0.6 s through
     j0.05 at the terminal) against ANDES's stored trapezoidal run at 1 ms, from the
-    same initial state. Measured: max |delta - delta_ANDES| = ... rad."""
+    same initial state. Measured (max over the run): delta 5.1e-6 rad, omega 1.2e-7
+    pu, e1q 2.3e-7, e1d 1.0e-6, e2d 2.7e-6, e2q 7.7e-6 pu; ANDES's 1 ms step is most
+    of it (with ANDES's default eps = 1e-4 s around events the angle differs by
+    7.4e-5 rad, see make_andes_genrou_smib.py). The bounds leave a factor 5-20."""
     err, swing = _errors(andes_run)
     assert swing > 0.2  # the fault moves the rotor
-    assert err["delta"] < 1e-4, err
+    assert err["delta"] < 5e-5, err
     assert err["omega"] < 1e-6, err
     for k in ("e1q", "e1d", "e2d", "e2q"):
         assert err[k] < 5e-5, err
@@ -357,7 +360,7 @@ def test_genrou_follows_a_live_andes_run():
     pm = g.tm0.v[0] * S_BASE / m.mbase[0]  # ANDES's torque is on the system base
     np.testing.assert_allclose(held["Pm"][0], pm, rtol=0, atol=1e-12)
     err, _ = _errors(REF.run_andes(t_end=1.0, keep_every=5))
-    assert err["delta"] < 1e-4, err
+    assert err["delta"] < 5e-5, err
 
 
 # -- saturation -------------------------------------------------------------------------
