@@ -88,6 +88,35 @@ class GENROU(AbstractMachine):
     saturation: str = eqx.field(static=True, default="quadratic")  # Se's fit
     f_base: float = eqx.field(static=True, default=60.0)  # frequency (Hz)
 
+    @classmethod
+    def from_params(cls, gen, params, *, mbase, zsource, f_base=60.0):
+        """From dyr records (PSS/E names, `psse.DYR_MODELS["GENROU"]`) and the raw
+        file's ZR (armature resistance, machine base)."""
+
+        def col(name):
+            return [p[name] for p in params]
+
+        return cls(
+            gen=gen,
+            mbase=mbase,
+            H=col("H"),
+            D=col("D"),
+            Tdop=col("Tdo_p"),
+            Tdopp=col("Tdo_pp"),
+            Tqop=col("Tqo_p"),
+            Tqopp=col("Tqo_pp"),
+            xd=col("Xd"),
+            xq=col("Xq"),
+            xdp=col("Xd_p"),
+            xqp=col("Xq_p"),
+            xdpp=col("Xd_pp"),
+            xl=col("Xl"),
+            ra=np.real(zsource),
+            S10=col("S10"),
+            S12=col("S12"),
+            f_base=f_base,
+        )
+
     state_names = ("delta", "omega", "e1q", "e1d", "e2d", "e2q")
 
     def __check_init__(self):
