@@ -188,25 +188,48 @@ _XF1 = [
     ("STAT", "i", 1),
 ]
 _XF2 = [("R1-2", "f", 0.0), ("X1-2", "f", _REQ), ("SBASE1-2", "f", None)]
-_XF3 = [
-    ("WINDV1", "f", None),
-    ("NOMV1", "f", 0.0),
-    ("ANG1", "f", 0.0),
-    ("RATA1", "f", 0.0),
-    ("RATB1", "f", 0.0),
-    ("RATC1", "f", 0.0),
-    ("COD1", "i", 0),
-    ("CONT1", "i", 0),
-    ("RMA1", "f", 1.1),
-    ("RMI1", "f", 0.9),
-    ("VMA1", "f", 1.1),
-    ("VMI1", "f", 0.9),
-    ("NTP1", "i", 33),
-    ("TAB1", "i", 0),
-    ("CR1", "f", 0.0),
-    ("CX1", "f", 0.0),
+_XF2_3W = [
+    ("R1-2", "f", 0.0),
+    ("X1-2", "f", _REQ),
+    ("SBASE1-2", "f", None),
+    ("R2-3", "f", 0.0),
+    ("X2-3", "f", _REQ),
+    ("SBASE2-3", "f", None),
+    ("R3-1", "f", 0.0),
+    ("X3-1", "f", _REQ),
+    ("SBASE3-1", "f", None),
+    ("VMSTAR", "f", 1.0),
+    ("ANSTAR", "f", 0.0),
 ]
-_XF4 = [("WINDV2", "f", None), ("NOMV2", "f", 0.0)]
+
+
+def _winding(w: str) -> list:
+    """The winding record of winding `w` (a transformer's lines 3, 4, 5)."""
+    return [
+        ("WINDV" + w, "f", None),
+        ("NOMV" + w, "f", 0.0),
+        ("ANG" + w, "f", 0.0),
+        ("RATA" + w, "f", 0.0),
+        ("RATB" + w, "f", 0.0),
+        ("RATC" + w, "f", 0.0),
+        ("COD" + w, "i", 0),
+        ("CONT" + w, "i", 0),
+        ("RMA" + w, "f", 1.1),
+        ("RMI" + w, "f", 0.9),
+        ("VMA" + w, "f", 1.1),
+        ("VMI" + w, "f", 0.9),
+        ("NTP" + w, "i", 33),
+        ("TAB" + w, "i", 0),
+        ("CR" + w, "f", 0.0),
+        ("CX" + w, "f", 0.0),
+    ]
+
+
+# the records after line 1 of a two- and of a three-winding transformer
+_XF_LINES = {
+    2: (_XF2, _winding("1"), [("WINDV2", "f", None), ("NOMV2", "f", 0.0)]),
+    3: (_XF2_3W, _winding("1"), _winding("2"), _winding("3")),
+}
 _SWSHUNT = [
     ("I", "i", _REQ),
     ("MODSW", "i", 1),
@@ -325,12 +348,12 @@ _ATTR = {
 def read_raw(path) -> RawData:
     """Read a PSS/E version 33 (or 32, whose records read here have the same fields)
     raw file: case identification (SBASE, BASFRQ, two title lines), buses, loads,
-    fixed shunts, generators, non-transformer branches, two-winding transformers and
-    switched shunts. Areas, dc lines, impedance corrections, multi-section lines,
-    zones, transfers, owners and FACTS devices are skipped; reading stops at the end
-    of the switched shunt data or at `Q`. A three-winding transformer, a version
-    other than 32 or 33, a malformed field or a record naming an unknown bus raises
-    `PsseError`."""
+    fixed shunts, generators, non-transformer branches, two- and three-winding
+    transformers (K != 0) and switched shunts. Areas, dc lines, impedance
+    corrections, multi-section lines, zones, transfers, owners and FACTS devices are
+    skipped; reading stops at the end of the switched shunt data or at `Q`. A
+    version other than 32 or 33, a malformed field or a record naming an unknown bus
+    raises `PsseError`."""
     name = str(path)
     with open(path, encoding="utf-8", errors="replace") as fh:
         lines = fh.read().splitlines()
@@ -387,17 +410,14 @@ def read_raw(path) -> RawData:
         kind = _BLOCKS[block]
         if kind == "transformer":
             rec = _record(f, q, _XF1, where, "transformer")
-            if rec["K"] != 0:
+            rest = _XF_LINES[2 if rec["K"] == 0 else 3]
+            if k + len(rest) > len(lines):
+                n = 2 if rec["K"] == 0 else 3
                 raise PsseError(
-                    f"{where}: transformer field K: {rec['K']} names a third winding; "
-                    "three-winding transformers are not supported"
+                    f"{where}: transformer record ends early (a {n}-winding record has "
+                    f"{len(rest) + 1} lines)"
                 )
-            if k + 3 > len(lines):
-                raise PsseError(
-                    f"{where}: transformer record ends early (a two-winding record has "
-                    "4 lines)"
-                )
-            for layout in (_XF2, _XF3, _XF4):
+            for layout in rest:
                 w = f"{name}:{k + 1}"
                 f2, q2, _ = _split(lines[k], w)
                 rec.update(_record(f2, q2, layout, w, "transformer"))
@@ -459,23 +479,35 @@ def _fill_and_check(raw: RawData) -> None:
                 "not supported"
             )
     for r in raw.transformers:
-        known(r, "transformer", "I")
-        r["J"] = known(r, "transformer", "J")
         line = r["_line"]
-        for fld, lo in (("CW", 3), ("CZ", 3), ("CM", 2)):
-            if r[fld] not in range(1, lo + 1):
+        three = r["K"] != 0
+        windings = [("1", "I", 2), ("2", "J", 3)] + ([("3", "K", 4)] if three else [])
+        for _, fld, _ in windings:
+            r[fld] = known(
+                r, "transformer", fld
+            )  # a negative bus marks the metered end
+        for fld, hi in (("CW", 3), ("CZ", 3), ("CM", 2)):
+            if r[fld] not in range(1, hi + 1):
                 raise PsseError(
                     f"{name}:{line}: transformer field {fld}: {r[fld]} is not one of "
-                    f"{', '.join(str(v) for v in range(1, lo + 1))}"
+                    f"{', '.join(str(v) for v in range(1, hi + 1))}"
                 )
-        if r["SBASE1-2"] is None:
-            r["SBASE1-2"] = raw.sbase
-        if r["SBASE1-2"] <= 0:
+        stats = (0, 1, 2, 3, 4) if three else (0, 1)
+        if r["STAT"] not in stats:
             raise PsseError(
-                f"{name}:{line + 1}: transformer field SBASE1-2: {r['SBASE1-2']!r} "
-                "is not positive"
+                f"{name}:{line}: transformer field STAT: {r['STAT']} is not one of "
+                f"{', '.join(str(v) for v in stats)}"
             )
-        for w, bus_no, off in (("1", r["I"], 2), ("2", r["J"], 3)):
+        for pair in ("1-2", "2-3", "3-1") if three else ("1-2",):
+            if r["SBASE" + pair] is None:
+                r["SBASE" + pair] = raw.sbase
+            if r["SBASE" + pair] <= 0:
+                raise PsseError(
+                    f"{name}:{line + 1}: transformer field SBASE{pair}: "
+                    f"{r['SBASE' + pair]!r} is not positive"
+                )
+        for w, fld, off in windings:
+            bus_no = r[fld]
             if r["CW"] != 1 or (r["CM"] == 2 and w == "1"):
                 if buses[bus_no]["BASKV"] <= 0:
                     raise PsseError(
@@ -496,54 +528,91 @@ def _fill_and_check(raw: RawData) -> None:
 # --------------------------------------------------------------------- to System
 
 
+def _ratio(r: dict, w: str, vb: float) -> float:
+    """Winding w's off-nominal ratio t_w in pu of its bus base voltage `vb` (kV)."""
+    windv = r["WINDV" + w]
+    if r["CW"] == 1:  # off-nominal ratio in pu of the bus base voltage
+        return windv
+    if r["CW"] == 2:  # winding voltage in kV
+        return windv / vb
+    return windv * (r["NOMV" + w] or vb) / vb  # pu of NOMV; NOMV = 0: the bus base kV
+
+
+def _impedance(r: dict, pair: str, sbase: float, where: str) -> complex:
+    """The impedance between windings `pair` ("1-2", ...) in pu on the system base."""
+    s_w = r["SBASE" + pair]
+    rr, xx = r["R" + pair], r["X" + pair]
+    if r["CZ"] == 2:  # pu on the winding MVA base SBASEi-j
+        rr, xx = rr * sbase / s_w, xx * sbase / s_w
+    elif r["CZ"] == 3:  # load loss in W and |Z| in pu on SBASEi-j
+        rw = rr / (1e6 * s_w)
+        if abs(xx) < rw:
+            raise PsseError(
+                f"{where}: transformer field X{pair}: |Z| = {xx!r} is below R = {rw!r} "
+                "from the load loss (CZ = 3)"
+            )
+        xw = math.copysign(math.sqrt(xx * xx - rw * rw), xx)
+        rr, xx = rw * sbase / s_w, xw * sbase / s_w
+    return complex(rr, xx)
+
+
+def _magnetizing(r: dict, vb1: float, sbase: float, where: str) -> complex:
+    """The magnetizing admittance G + jB at bus I in pu on the system base."""
+    if r["CM"] == 1:  # pu on the system base and bus I's base voltage
+        return complex(r["MAG1"], r["MAG2"])
+    # CM = 2: no-load loss in W, exciting current in pu on SBASE1-2 and NOMV1
+    k = (vb1 / (r["NOMV1"] or vb1)) ** 2
+    g = r["MAG1"] / (1e6 * sbase) * k
+    y = abs(r["MAG2"]) * r["SBASE1-2"] / sbase * k
+    if y < g:
+        raise PsseError(
+            f"{where}: transformer field MAG2: exciting current {r['MAG2']!r} is "
+            "below the no-load loss's conductance (CM = 2)"
+        )
+    return complex(g, -math.sqrt(y * y - g * g))
+
+
 def _transformer(r: dict, vb1: float, vb2: float, sbase: float, where: str):
-    """A two-winding transformer as (r, x, tap, shift, g_m, b_m) on the system base.
+    """A two-winding transformer as (r, x, tap, shift, y_m) on the system base.
 
     PSS/E's model (POM 33, two-winding transformer data): bus I, the magnetizing
-    admittance G + jB at bus I, an ideal transformer t1 e^{j ANG1} : 1, the
+    admittance y_m = G + jB at bus I, an ideal transformer t1 e^{j ANG1} : 1, the
     impedance R + jX, an ideal 1 : t2, bus J; t1, t2 in pu of the bus base voltages.
     Moving t2 to the from side gives the branch tap t1/t2, shift ANG1 and impedance
     (R + jX) t2^2.
     """
-    cw, cz, cm = r["CW"], r["CZ"], r["CM"]
-    nomv1 = r["NOMV1"] or vb1  # NOMV = 0: the bus base kV
-    nomv2 = r["NOMV2"] or vb2
-    w1, w2 = r["WINDV1"], r["WINDV2"]
-    if cw == 1:  # off-nominal ratio in pu of the bus base voltage
-        t1, t2 = w1, w2
-    elif cw == 2:  # winding voltage in kV
-        t1, t2 = w1 / vb1, w2 / vb2
-    else:  # off-nominal ratio in pu of the nominal winding voltage NOMV
-        t1, t2 = w1 * nomv1 / vb1, w2 * nomv2 / vb2
-    s12 = r["SBASE1-2"]
-    rr, xx = r["R1-2"], r["X1-2"]
-    if cz == 2:  # pu on the winding MVA base SBASE1-2
-        rr, xx = rr * sbase / s12, xx * sbase / s12
-    elif cz == 3:  # load loss in W and |Z| in pu on SBASE1-2
-        rw = rr / (1e6 * s12)
-        if abs(xx) < rw:
-            raise PsseError(
-                f"{where}: transformer field X1-2: |Z| = {xx!r} is below R = {rw!r} "
-                "from the load loss (CZ = 3)"
-            )
-        xw = math.copysign(math.sqrt(xx * xx - rw * rw), xx)
-        rr, xx = rw * sbase / s12, xw * sbase / s12
-    if rr == 0.0 and xx == 0.0:
+    t1, t2 = _ratio(r, "1", vb1), _ratio(r, "2", vb2)
+    z = _impedance(r, "1-2", sbase, where) * t2 * t2
+    if z == 0:
         raise PsseError(
             f"{where}: transformer field X1-2: zero impedance (R = X = 0) is not supported"
         )
-    g, b = r["MAG1"], r["MAG2"]
-    if cm == 2:  # no-load loss in W, exciting current in pu on SBASE1-2 and NOMV1
-        k = (vb1 / nomv1) ** 2
-        g = r["MAG1"] / (1e6 * sbase) * k
-        y = abs(r["MAG2"]) * s12 / sbase * k
-        if y < g:
+    y_m = _magnetizing(r, vb1, sbase, where)
+    return z.real, z.imag, t1 / t2, math.radians(r["ANG1"]), y_m
+
+
+def _three_winding(r: dict, vb: tuple, sbase: float, where: str):
+    """A three-winding transformer as three branches from its buses to a star point:
+    [(r, x, tap, shift) of windings 1, 2, 3] and the magnetizing admittance at bus I.
+
+    PSS/E's model (POM 33, three-winding transformer data): winding w is bus w, an
+    ideal transformer t_w e^{j ANGw} : 1, the star impedance Z_w, the star point;
+    Z_1 = (Z12 + Z31 - Z23) / 2, Z_2 = (Z12 + Z23 - Z31) / 2,
+    Z_3 = (Z23 + Z31 - Z12) / 2, each Z_ij on the system base.
+    """
+    z12, z23, z31 = (_impedance(r, p, sbase, where) for p in ("1-2", "2-3", "3-1"))
+    zs = ((z12 + z31 - z23) / 2, (z12 + z23 - z31) / 2, (z23 + z31 - z12) / 2)
+    legs = []
+    for w, z in zip("123", zs, strict=True):
+        if z == 0:
             raise PsseError(
-                f"{where}: transformer field MAG2: exciting current {r['MAG2']!r} is "
-                f"below the no-load loss's conductance (CM = 2)"
+                f"{where}: transformer field X1-2: the star impedance of winding {w} "
+                "is zero (R = X = 0 is not supported)"
             )
-        b = -math.sqrt(y * y - g * g)
-    return rr * t2 * t2, xx * t2 * t2, t1 / t2, math.radians(r["ANG1"]), g, b
+        legs.append(
+            (z.real, z.imag, _ratio(r, w, vb[int(w) - 1]), math.radians(r["ANG" + w]))
+        )
+    return legs, _magnetizing(r, vb[0], sbase, where)
 
 
 def to_system(raw: RawData) -> System:
@@ -560,21 +629,45 @@ def to_system(raw: RawData) -> System:
     - fixed shunts (GL + j BL) / SBASE, switched shunts j BINIT / SBASE;
     - line-end shunts GI + j BI, GJ + j BJ of in-service branches become shunts at
       their buses; a transformer's magnetizing admittance becomes a shunt at bus I;
-    - two-winding transformers: `_transformer`.
+    - two-winding transformers: one branch (`_transformer`); three-winding
+      transformers: a star point bus (number: one above the largest bus number, in
+      file order; type 1, or 4 when the transformer is out of service; VMSTAR,
+      ANSTAR; base kV NOMV1 or bus I's) and three branches from the winding buses to
+      it (`_three_winding`), a winding out of service (STAT 2, 3, 4) as status 0.
     """
     sb = raw.sbase
-    number = np.array([b["I"] for b in raw.buses], dtype=np.int64)
+    bus_rec = list(raw.buses)
+    star_numbers = {}
+    top = max((b["I"] for b in raw.buses), default=0)
+    by_number = {b["I"]: b for b in raw.buses}
+    for r in raw.transformers:
+        if r["K"] == 0:
+            continue
+        top += 1
+        star_numbers[id(r)] = top
+        bus_rec.append(
+            {
+                "I": top,
+                "NAME": f"STAR {r['I']}-{r['J']}-{r['K']} {r['CKT']}",
+                "BASKV": r["NOMV1"] or by_number[r["I"]]["BASKV"],
+                "IDE": 4 if r["STAT"] == 0 else 1,
+                "AREA": by_number[r["I"]]["AREA"],
+                "VM": r["VMSTAR"],
+                "VA": r["ANSTAR"],
+            }
+        )
+    number = np.array([b["I"] for b in bus_rec], dtype=np.int64)
     pos = {int(n): k for k, n in enumerate(number)}
-    kv = {b["I"]: b["BASKV"] for b in raw.buses}
-    vm = {b["I"]: b["VM"] for b in raw.buses}
+    kv = {b["I"]: b["BASKV"] for b in bus_rec}
+    vm = {b["I"]: b["VM"] for b in bus_rec}
     buses = Buses(
         number=number,
-        kind=[b["IDE"] for b in raw.buses],
-        vm=[b["VM"] for b in raw.buses],
-        va=[math.radians(b["VA"]) for b in raw.buses],
-        base_kv=[b["BASKV"] for b in raw.buses],
-        area=[b["AREA"] for b in raw.buses],
-        name=tuple(b["NAME"] for b in raw.buses),
+        kind=[b["IDE"] for b in bus_rec],
+        vm=[b["VM"] for b in bus_rec],
+        va=[math.radians(b["VA"]) for b in bus_rec],
+        base_kv=[b["BASKV"] for b in bus_rec],
+        area=[b["AREA"] for b in bus_rec],
+        name=tuple(b["NAME"] for b in bus_rec),
     )
 
     sh_bus, sh_g, sh_b = [], [], []
@@ -604,11 +697,23 @@ def to_system(raw: RawData) -> System:
             shunt(r["J"], r["GJ"], r["BJ"])
     for r in raw.transformers:
         where = f"{raw.path}:{r['_line'] + 1}"
-        rr, xx, tap, shift, g, b = _transformer(r, kv[r["I"]], kv[r["J"]], sb, where)
-        on = 1.0 if r["STAT"] != 0 else 0.0
-        branch(r["I"], r["J"], rr, xx, 0.0, tap, shift, on, 1, r["CKT"])
+        if r["K"] == 0:
+            rr, xx, tap, shift, y_m = _transformer(r, kv[r["I"]], kv[r["J"]], sb, where)
+            on = 1.0 if r["STAT"] != 0 else 0.0
+            branch(r["I"], r["J"], rr, xx, 0.0, tap, shift, on, 1, r["CKT"])
+        else:
+            vb = (kv[r["I"]], kv[r["J"]], kv[r["K"]])
+            legs, y_m = _three_winding(r, vb, sb, where)
+            star = star_numbers[id(r)]
+            # STAT: 0 all windings out, 1 all in, 2 winding 2 out, 3 winding 3 out,
+            # 4 winding 1 out
+            out = {0: "123", 1: "", 2: "2", 3: "3", 4: "1"}[r["STAT"]]
+            for w, fld, (rr, xx, tap, shift) in zip("123", "IJK", legs, strict=True):
+                on = 0.0 if w in out else 1.0
+                branch(r[fld], star, rr, xx, 0.0, tap, shift, on, 1, r["CKT"])
+            on = 0.0 if "1" in out else 1.0
         if on:
-            shunt(r["I"], g, b)
+            shunt(r["I"], y_m.real, y_m.imag)
 
     ld_bus, ld_p, ld_q, ld_id = [], [], [], []
     current = []
