@@ -25,9 +25,10 @@ their scheduled p + j q. Reactive limits (`qmin`, `qmax`) are not enforced.
 Sharing among the in-service generators of one bus: P is scheduled per generator; at
 a slack bus the bus's generation is shared in proportion to `mbase`. Q at a PV or
 slack bus is shared so that every generator sits at the same fraction of its range,
-q_i = qmin_i + (Q - sum qmin) (qmax_i - qmin_i) / sum (qmax - qmin) (PSS/E and
-MATPOWER's rule; with symmetric limits it is in proportion to qmax), and equally if a
-range is not finite or the ranges sum to zero.
+q_i = qmin_i + (Q - sum qmin) (qmax_i - qmin_i) / sum (qmax - qmin) (MATPOWER's
+rule; with symmetric limits it is a share in proportion to the Q ranges, PSS/E's
+stated rule; that the two agree for asymmetric limits is not checked here), and
+equally if a range is not finite or the ranges sum to zero.
 """
 
 from __future__ import annotations
