@@ -479,6 +479,25 @@ def test_vmap_over_load_factors_equals_the_loop_with_one_compile():
             np.asarray(one.p_gen[1:]), f * np.array([1.63, 0.85])
         )
     assert float(res.vm[3, 4]) < float(res.vm[0, 4])  # heavier load, lower voltage
+    scaled = scale_operating_point(system, 1.2, 0.9)
+    np.testing.assert_allclose(scaled.loads.p, 1.2 * system.loads.p, rtol=1e-15)
+    np.testing.assert_allclose(scaled.loads.q, 1.2 * system.loads.q, rtol=1e-15)
+    np.testing.assert_allclose(scaled.generators.p, [0, 0.9 * 1.63, 0.9 * 0.85])
+
+
+def test_vmap_over_branch_outages_equals_the_loop(solved):
+    system = meshed5()
+    status = np.array(
+        [[1, 1, 1, 1, 1, 1, 1, 0], [1, 0, 1, 1, 1, 1, 1, 1], [1, 1, 1, 1, 1, 1, 0, 1]],
+        float,
+    )
+    res = jax.vmap(lambda st: power_flow(system, branch_status=st))(status)
+    for k, st in enumerate(status):
+        one = solve_power_flow(eqx.tree_at(lambda s: s.branches.status, system, st))
+        np.testing.assert_allclose(res.vm[k], one.vm, atol=1e-12)
+        np.testing.assert_allclose(res.va[k], one.va, atol=1e-12)
+    np.testing.assert_allclose(res.vm[0], solved["5"].vm, atol=1e-12)  # the base case
+    assert np.max(np.abs(res.va[2] - res.va[0])) > 0.01  # the outage moves the angles
 
 
 # ---- (f) non-convergence ----
@@ -514,3 +533,21 @@ def test_bad_input_is_one_line():
         ValueError, match=r"^power flow: start 'cold' is not 'case' or 'flat'$"
     ):
         solve_power_flow(system, start="cold")
+    isolated = eqx.tree_at(
+        lambda s: s.buses.kind, system, np.array([3, 2, 2, 1, 4, 1, 1, 1, 1])
+    )
+    with pytest.raises(
+        ValueError,
+        match=r"^power flow: bus 5 has type 4; the power flow takes 1 \(PQ\), 2 "
+        r"\(PV\) and 3 \(slack\)$",
+    ):
+        solve_power_flow(isolated)
+    x = np.asarray(system.branches.x).copy()
+    x[4] = 0.0
+    shorted = eqx.tree_at(
+        lambda s: (s.branches.r, s.branches.x), system, (np.zeros(9), x)
+    )
+    with pytest.raises(
+        ValueError, match=r"^power flow: branch 4-6 has zero impedance \(r = x = 0\)$"
+    ):
+        solve_power_flow(shorted)

@@ -146,18 +146,15 @@ def _residual(y, args):
     return jnp.concatenate([r_p, r_q])
 
 
-def _start(system: System, s: _Schedule, start: Start):
+def _start(system: System, s: _Schedule, flat):
+    """Newton's start: the raw file's vm, va, or (`flat`, a traced bool, so that both
+    starts share one compile) vm = 1 and va = the slack angle; the set points at PV
+    and slack buses either way."""
     b = system.buses
-    if start == "flat":
-        n_slack = jnp.maximum(jnp.sum(s.slack), 1)
-        va_ref = jnp.sum(jnp.where(s.slack, s.va_set, 0.0)) / n_slack
-        va0 = jnp.where(s.slack, s.va_set, va_ref)
-        vm0 = jnp.where(s.fixed_v, s.v_set, 1.0)
-    elif start == "case":
-        va0 = jnp.asarray(b.va)
-        vm0 = jnp.where(s.fixed_v, s.v_set, jnp.asarray(b.vm))
-    else:
-        raise ValueError(f"power flow: start {start!r} is not 'case' or 'flat'")
+    n_slack = jnp.maximum(jnp.sum(s.slack), 1)
+    va_ref = jnp.sum(jnp.where(s.slack, s.va_set, 0.0)) / n_slack
+    va0 = jnp.where(flat, jnp.where(s.slack, s.va_set, va_ref), jnp.asarray(b.va))
+    vm0 = jnp.where(s.fixed_v, s.v_set, jnp.where(flat, 1.0, jnp.asarray(b.vm)))
     return jnp.concatenate([va0, vm0]).astype(jnp.float64)
 
 
@@ -216,18 +213,21 @@ def power_flow(
     Differentiable (implicit function theorem) in the loads, generation, set points
     and network parameters; jittable and vmappable (nothing here depends on the
     values of the bus types)."""
+    if start not in ("case", "flat"):
+        raise ValueError(f"power flow: start {start!r} is not 'case' or 'flat'")
     # one compile per shape, whether the leaves are NumPy or JAX arrays
     system = jax.tree.map(jnp.asarray, system)
+    flat = jnp.asarray(start == "flat")
     return _power_flow(
-        system, start=start, tol=tol, max_iter=max_iter, branch_status=branch_status
+        system, flat, tol=tol, max_iter=max_iter, branch_status=branch_status
     )
 
 
 @eqx.filter_jit
-def _power_flow(system, *, start, tol, max_iter, branch_status):
+def _power_flow(system, flat, *, tol, max_iter, branch_status):
     s = _schedule(system)
     Y = ybus(system, branch_status)
-    y0 = _start(system, s, start)
+    y0 = _start(system, s, flat)
     solver = optx.Newton(
         rtol=tol, atol=tol, linear_solver=lx.AutoLinearSolver(well_posed=None)
     )
@@ -298,8 +298,6 @@ def solve_power_flow(
     """`power_flow` on the host (one compile per case shape): checks the data
     and raises `PowerFlowError` with one line naming the largest mismatch (pu, MW or
     Mvar) and its bus number if Newton does not converge."""
-    if start not in ("case", "flat"):
-        raise ValueError(f"power flow: start {start!r} is not 'case' or 'flat'")
     _check(system)
     res = power_flow(system, start=start, tol=tol, max_iter=max_iter)
     if not bool(res.converged):
