@@ -99,9 +99,7 @@ class AbstractMachine(eqx.Module):
         base, out of the terminal), "Vt" (pu), "It" (pu machine base)."""
 
     @abc.abstractmethod
-    def init(
-        self, v: CVec, s: CVec, s_base: float
-    ) -> tuple[States, dict[str, Vec]]:
+    def init(self, v: CVec, s: CVec, s_base: float) -> tuple[States, dict[str, Vec]]:
         """(x0, cmd0): the equilibrium states for terminal voltages v and power
         injections s = P + jQ (pu, system base) from the power flow, and the commands
         ("Efd", "Pm") that hold them."""
