@@ -128,7 +128,10 @@ class EXST1(AbstractController):
         )
         ref = meas["Vt"] - meas["Vs"] + vi0
         zero = 0.0 * y0
-        return jnp.stack([meas["Vt"] + zero, vi0, y0 + zero, y0 + zero]), ref
+        vt = meas["Vt"] + zero
+        vi0 = ref - vt - zero + meas["Vs"]  # as rhs computes it
+        efd0 = self.KA * vi0
+        return jnp.stack([vt, vi0, efd0, efd0]), ref
 
     def _f(self, x, meas, ref):
         vm, dvm = lag(x[0], meas["Vt"], 1.0, self.TR)

@@ -202,10 +202,11 @@ class _DCExciter(AbstractController):
             vr0,
             "the regulator output at the operating point must lie within its limits",
         )
-        y_ll = vr0 / self.KA
-        vref = meas["Vt"] - meas["Vs"] + y_ll
+        vref = meas["Vt"] - meas["Vs"] + vr0 / self.KA
         zero = 0.0 * y0
-        x0 = jnp.stack([meas["Vt"] + zero, y_ll, vr0, y0 + zero, y0 + zero])
+        vt = meas["Vt"] + zero
+        y_ll = vref - vt - zero + meas["Vs"]  # as rhs computes it
+        x0 = jnp.stack([vt, y_ll, self.KA * y_ll, y0 + zero, y0 + zero])
         return x0, jnp.stack([vref, ke + zero])
 
     def _f(self, x, meas, ref):

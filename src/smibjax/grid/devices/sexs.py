@@ -80,9 +80,9 @@ class SEXS(AbstractController):
             y0,
             "the operating point's field voltage must lie within [EMIN, EMAX]",
         )
-        vi0 = y0 / self.K
-        ref = meas["Vt"] - meas["Vs"] + vi0
-        return jnp.stack([vi0, y0 + 0.0 * vi0]), ref
+        ref = meas["Vt"] - meas["Vs"] + y0 / self.K
+        vi0 = ref - meas["Vt"] + meas["Vs"]  # as rhs computes it: dx/dt = 0 exactly
+        return jnp.stack([vi0, self.K * vi0]), ref
 
     def rhs(self, x, meas, ref):
         return self._chain(x, meas, ref)[1]
