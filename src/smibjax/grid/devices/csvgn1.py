@@ -30,8 +30,9 @@ VMIN/VMAX limiter (PSS/E's VOTHSG enters at the voltage error instead).
 
 With K = 0 and T1 = T2 = T3 = T4 = 0 this is the paper's SVC (MODEL.md section 1)
 on the device base: with Bm = CBASE/MBASE - Y, T5 dBm/dt = -(Bm - Bm0) + u inside
-the limits, and with VMAX = -(Bm0 + u_min), VMIN = -(Bm0 + u_max) the limiter is
-exactly the paper's clip of u to [u_min, u_max] (`DirectSVC`).
+the limits, and with VMAX = Y0 - u_min, VMIN = Y0 - u_max the limiter is exactly
+the paper's clip of u to [u_min, u_max] (`DirectSVC`): T5 dBm/dt = -(Bm - Bm0) +
+clip(u, u_min, u_max).
 
 At rest (`init`): B0 = q/|V|^2 from the power flow's reactive injection q (pu
 system base), Y0 = (CBASE - B0 SBASE)/MBASE (refused outside [RMIN/MBASE, 1] or
