@@ -611,8 +611,8 @@ def test_csvgn1_reduces_to_the_paper_svc():
         T4=z,
         T5=np.full(2 * n, Tr),
         RMIN=-2 * mbase,
-        VMAX=-(bm0 + umin),
-        VMIN=-(bm0 + umax),
+        VMAX=y0 - umin,
+        VMIN=y0 - umax,
         CBASE=cbase,
         MBASE=mbase,
     )
