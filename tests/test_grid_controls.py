@@ -570,7 +570,7 @@ def test_exst1_special_case_is_the_smib_st1a_exciter():
     )
     meas = {
         "Vt": jnp.array([1.0, 0.9, 1.1, 1.0]),
-        "Vs": jnp.array([0.0, 0.05, 0, 0]),
+        "Vs": jnp.array([0.05, 0.05, 0.0, -0.02]),
         "XadIfd": jnp.ones(4),
     }
     x0, ref = dev.init(
