@@ -1,0 +1,185 @@
+"""Transfer-function blocks shared by the controller models, vectorized over the
+device axis: each returns (output, state derivative) for the block's input and state.
+
+Every block keeps its state even where a time constant is zero (a group has one
+state count): a zero lag time constant makes the block algebraic (output = its
+input, through the gain and the limits), and its state a placeholder whose
+derivative is exactly zero, left at the value `init` gave it. Division is guarded
+(`_safe`) so gradients stay finite in both branches of every `jnp.where`.
+
+Limits come in the two kinds of the PSS/E block diagrams:
+
+- non-windup (PSS/E's limits drawn on a lag block, ANDES `LagAntiWindup`): the
+  state is held at a limit while its input pushes it outwards, and leaves it as
+  soon as the input reverses;
+- windup (a separate limiter after a block, ANDES `HardLimiter`/`Limiter`): the
+  block's output is clipped, its states are not.
+"""
+
+from __future__ import annotations
+
+import jax.numpy as jnp
+import numpy as np
+
+from ..._validate import ParameterError, is_concrete, require
+
+__all__ = [
+    "nonwindup",
+    "lag",
+    "lag_nonwindup",
+    "leadlag",
+    "washout",
+    "second_order_lag",
+    "second_order_leadlag",
+    "build_group",
+    "check",
+]
+
+
+def _safe(T):
+    """T where T > 0, else 1 (a divisor for the branch that is not taken)."""
+    return jnp.where(T > 0, T, 1.0)
+
+
+def nonwindup(x, dx, lo, hi):
+    """dx/dt of a state held within [lo, hi]: zero while at (or past) a limit and
+    pushed outwards (infinite limits: no limit)."""
+    pinned = ((x >= hi) & (dx > 0)) | ((x <= lo) & (dx < 0))
+    return jnp.where(pinned, 0.0, dx)
+
+
+def lag(x, u, K, T):
+    """K / (1 + s T): y = x, T dx/dt = K u - x; T = 0: y = K u."""
+    on = T > 0
+    return jnp.where(on, x, K * u), jnp.where(on, (K * u - x) / _safe(T), 0.0)
+
+
+def lag_nonwindup(x, u, K, T, lo, hi):
+    """K / (1 + s T) with non-windup limits [lo, hi] on its state (y = x, held at a
+    limit while K u pushes outwards); T = 0: y = clip(K u, lo, hi)."""
+    on = T > 0
+    dx = nonwindup(x, (K * u - x) / _safe(T), lo, hi)
+    y = jnp.where(on, jnp.clip(x, lo, hi), jnp.clip(K * u, lo, hi))
+    return y, jnp.where(on, dx, 0.0)
+
+
+def leadlag(x, u, T_lead, T_lag):
+    """(1 + s T_lead) / (1 + s T_lag): T_lag dx/dt = u - x, y = x + (T_lead /
+    T_lag)(u - x); T_lag = 0 (then T_lead = 0): y = u."""
+    on = T_lag > 0
+    y = jnp.where(on, x + T_lead / _safe(T_lag) * (u - x), u)
+    return y, jnp.where(on, (u - x) / _safe(T_lag), 0.0)
+
+
+def washout(x, u, K, T):
+    """s K / (1 + s T): T dx/dt = u - x, y = (K / T)(u - x); T = 0 (then K = 0):
+    y = 0."""
+    on = T > 0
+    y = jnp.where(on, K / _safe(T) * (u - x), 0.0)
+    return y, jnp.where(on, (u - x) / _safe(T), 0.0)
+
+
+def second_order_lag(x1, x2, u, a1, a2):
+    """1 / (1 + a1 s + a2 s^2), states (x1, x2) = (y, dy/dt) when a2 > 0; a2 = 0,
+    a1 > 0: the first-order lag 1 / (1 + a1 s) in x1 (x2 a placeholder at 0);
+    a1 = a2 = 0: y = u. Returns (y, dx1, dx2)."""
+    second, first = a2 > 0, (a2 <= 0) & (a1 > 0)
+    y = jnp.where(second | first, x1, u)
+    dx1 = jnp.where(second, x2, jnp.where(first, (u - x1) / _safe(a1), 0.0))
+    dx2 = jnp.where(second, (u - x1 - a1 * x2) / _safe(a2), 0.0)
+    return y, dx1, dx2
+
+
+def second_order_leadlag(x1, x2, u, a3, a4, a5, a6):
+    """(1 + a5 s + a6 s^2) / (1 + a3 s + a4 s^2) in controllable form: with a4 > 0,
+    dx1/dt = x2, a4 dx2/dt = u - x1 - a3 x2, y = x1 + a5 x2 + a6 dx2/dt; a4 = 0
+    (then a6 = 0), a3 > 0: (1 + a5 s) / (1 + a3 s) in x1; a3 = a4 = 0 (then a5 =
+    a6 = 0): y = u. Returns (y, dx1, dx2)."""
+    second, first = a4 > 0, (a4 <= 0) & (a3 > 0)
+    ddx = (u - x1 - a3 * x2) / _safe(a4)
+    dfirst = (u - x1) / _safe(a3)
+    y = jnp.where(
+        second,
+        x1 + a5 * x2 + a6 * ddx,
+        jnp.where(first, x1 + a5 * dfirst, u),
+    )
+    dx1 = jnp.where(second, x2, jnp.where(first, dfirst, 0.0))
+    dx2 = jnp.where(second, ddx, 0.0)
+    return y, dx1, dx2
+
+
+def check(obj, rules) -> None:
+    """Validate concrete parameters of `obj`: `rules` is a list of (name, ok-function
+    of the NumPy values of `obj`, what is allowed). Skipped under tracing."""
+    fields = [getattr(obj, n) for n, _, _ in rules]
+    if not is_concrete(*fields):
+        return
+    for name, ok, allowed in rules:
+        require(ok(obj), type(obj).__name__, name, getattr(obj, name), allowed)
+
+
+def v(obj, name):
+    """The NumPy value of field `name` of `obj` (for `check` rules)."""
+    return np.asarray(getattr(obj, name), dtype=float)
+
+
+def proper(lead: str, lag_: str):
+    """A `check` rule: the lead-lag (1 + s lead)/(1 + s lag) is proper (lag > 0, or
+    lag = lead = 0), with both time constants >= 0."""
+    return (
+        lag_,
+        lambda o: (
+            (v(o, lag_) >= 0)
+            & (v(o, lead) >= 0)
+            & ((v(o, lag_) > 0) | (v(o, lead) == 0))
+        ),
+        f"must be >= 0, and > 0 where {lead} != 0 (the block would be improper)",
+    )
+
+
+def nonneg(*names):
+    return [(n, lambda o, n=n: v(o, n) >= 0, "must be >= 0") for n in names]
+
+
+def positive(*names):
+    return [(n, lambda o, n=n: v(o, n) > 0, "must be > 0") for n in names]
+
+
+def ordered(lo: str, hi: str):
+    return (hi, lambda o: v(o, hi) >= v(o, lo), f"must be >= {lo}")
+
+
+def require_at_rest(ok, owner: str, name: str, value, allowed: str) -> None:
+    """At `init`: refuse (one line) an operating point the device cannot hold, when
+    the values are concrete."""
+    if is_concrete(ok, value):
+        require(np.asarray(ok), owner, name, np.asarray(value), allowed)
+
+
+def build_group(cls, positions, records, names, pos_field="gen", **extra):
+    """Build the group `cls` from PSS/E dyr records: `records[i]` maps CON names to
+    floats for the device at `positions[i]`. Extra keys are ignored; a missing one
+    is refused in one line naming the model, the record and the name."""
+    positions = np.asarray(positions, dtype=np.int64).reshape(-1)
+    records = list(records)
+    if len(records) != positions.size:
+        raise ParameterError(
+            f"{cls.__name__}.from_params: {positions.size} positions but "
+            f"{len(records)} records"
+        )
+    cols = {}
+    for n in names:
+        col = []
+        for i, rec in enumerate(records):
+            if n not in rec:
+                raise ParameterError(
+                    f"{cls.__name__} record {i} (position {positions[i]}) has no {n}"
+                )
+            try:
+                col.append(float(rec[n]))
+            except (TypeError, ValueError):
+                raise ParameterError(
+                    f"{cls.__name__} record {i}: {n} = {rec[n]!r} is not a number"
+                ) from None
+        cols[n] = np.asarray(col, dtype=np.float64)
+    return cls(**{pos_field: positions}, **cols, **extra)
