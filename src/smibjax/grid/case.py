@@ -149,11 +149,8 @@ def build_case(system, records, name: str = "") -> Case:
             pos = [g for g, _ in entries]
             have_machine |= set(pos)
             bus = np.asarray(gens.bus)[pos]
-            svcs.append(
-                _model_class(model).from_params(
-                    bus, [r.params for _, r in entries], mbase=mbase[pos]
-                )
-            )
+            params = [dict(r.params, MBASE=float(mbase[g])) for g, r in entries]
+            svcs.append(_model_class(model).from_params(bus, params))
     for model in STABILIZERS + EXCITERS + GOVERNORS:
         entries = by_model.get(model, [])
         if not entries:

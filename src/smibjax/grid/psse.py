@@ -779,6 +779,7 @@ def to_system(raw: RawData) -> System:
             mbase=[g["MBASE"] for g in gens],
             status=[1.0 if g["STAT"] != 0 else 0.0 for g in gens],
             ident=tuple(g["ID"] for g in gens),
+            zsource=[complex(g["ZR"], g["ZX"]) for g in gens],
         ),
         s_base=sb,
         f_base=raw.basfrq,

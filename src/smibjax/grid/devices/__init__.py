@@ -1,4 +1,14 @@
 """Device models, one module per PSS/E dyr model, each a group vectorized over its
 devices (see `base`)."""
 
+from .csvgn1 import CSVGN1 as CSVGN1
+from .direct import DirectField as DirectField, DirectSVC as DirectSVC
+from .exst1 import EXST1 as EXST1
 from .gencls import GENCLS as GENCLS
+from .genrou import GENROU as GENROU
+from .gentra import GENTRA as GENTRA
+from .ieeest import IEEEST as IEEEST
+from .ieeex1 import EXDC2 as EXDC2, IEEEX1 as IEEEX1
+from .sexs import SEXS as SEXS
+from .stab1 import STAB1 as STAB1
+from .tgov1 import TGOV1 as TGOV1
