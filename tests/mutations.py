@@ -50,6 +50,9 @@ SIM_REF = (
 )
 SIM_OTHER = "tests/test_simulate.py::test_other_scenarios_match_scipy"
 
+PSSE = "src/smibjax/grid/psse.py"
+PSSE_T = "tests/test_psse.py"
+
 MUTANTS = [
     # -- the stop-gradient on step lengths (_stepping.py) --------------------------
     Mutant(
@@ -333,6 +336,93 @@ MUTANTS = [
         "jump = jnp.zeros(grid.shape[0] - 1 + pad, bool)",
         ("tests/test_fixed.py",),
         "Tsit5's FSAL state reused across a switch (made_jump never set)",
+    ),
+    # -- the PSS/E reader (grid/psse.py) ---------------------------------------------
+    Mutant(
+        "psse-no-t2-squared",
+        PSSE,
+        'z = _impedance(r, "1-2", sbase, where) * t2 * t2',
+        'z = _impedance(r, "1-2", sbase, where)',
+        (
+            f"{PSSE_T}::test_transformer_cw1_cz1_cm1",
+            f"{PSSE_T}::test_transformer_cw2_cz2",
+        ),
+        "the transformer impedance not moved through t2 with the ratio (ANDES's way)",
+    ),
+    Mutant(
+        "psse-cw2-no-base-kv",
+        PSSE,
+        "        return windv / vb\n",
+        "        return windv\n",
+        (f"{PSSE_T}::test_transformer_cw2_cz2",),
+        "CW = 2 winding voltages taken as per-unit ratios",
+    ),
+    Mutant(
+        "psse-cw3-no-nomv",
+        PSSE,
+        'return windv * (r["NOMV" + w] or vb) / vb',
+        "return windv",
+        (
+            f"{PSSE_T}::test_transformer_cw3_cz3_cm2",
+            f"{PSSE_T}::test_three_winding_transformers",
+        ),
+        "CW = 3 ratios not scaled by NOMV / BASKV",
+    ),
+    Mutant(
+        "psse-cz3-loss-base",
+        PSSE,
+        "rw = rr / (1e6 * s_w)",
+        "rw = rr / 1e6",
+        (f"{PSSE_T}::test_transformer_cw3_cz3_cm2",),
+        "CZ = 3 load loss not divided by the winding MVA base",
+    ),
+    Mutant(
+        "psse-cm2-b-sign",
+        PSSE,
+        "return complex(g, -math.sqrt(y * y - g * g))",
+        "return complex(g, math.sqrt(y * y - g * g))",
+        (f"{PSSE_T}::test_transformer_cw3_cz3_cm2",),
+        "CM = 2 magnetizing susceptance capacitive (ANDES's sign)",
+    ),
+    Mutant(
+        "psse-shift-in-degrees",
+        PSSE,
+        'return z.real, z.imag, t1 / t2, math.radians(r["ANG1"]), y_m',
+        'return z.real, z.imag, t1 / t2, r["ANG1"], y_m',
+        (f"{PSSE_T}::test_phase_shifter_and_out_of_service_transformer",),
+        "ANG1 left in degrees",
+    ),
+    Mutant(
+        "psse-star-legs-swapped",
+        PSSE,
+        "zs = ((z12 + z31 - z23) / 2, (z12 + z23 - z31) / 2, (z23 + z31 - z12) / 2)",
+        "zs = ((z12 + z23 - z31) / 2, (z12 + z31 - z23) / 2, (z23 + z31 - z12) / 2)",
+        (f"{PSSE_T}::test_three_winding_transformers",),
+        "the star impedances of windings 1 and 2 exchanged",
+    ),
+    Mutant(
+        "psse-line-end-shunts-dropped",
+        PSSE,
+        '            shunt(r["I"], r["GI"], r["BI"])\n',
+        "            pass\n",
+        (f"{PSSE_T}::test_shunts",),
+        "a branch's GI + jBI not placed at bus I",
+    ),
+    Mutant(
+        "psse-genrou-order",
+        PSSE,
+        '    "GENROU": (\n        "Tdo_p",\n        "Tdo_pp",',
+        '    "GENROU": (\n        "Tdo_pp",\n        "Tdo_p",',
+        (f"{PSSE_T}::test_read_dyr", f"{PSSE_T}::test_dyr_order_against_andes_yaml"),
+        "GENROU's T'do and T''do read in each other's place",
+    ),
+    Mutant(
+        "psse-no-machine-check",
+        PSSE,
+        "if float(np.asarray(gens.status)[g]) != 0.0 and",
+        "if False and",
+        (f"{PSSE_T}::test_check_dynamics_errors",),
+        "a generator in service without a machine record accepted",
     ),
 ]
 

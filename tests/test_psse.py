@@ -344,6 +344,11 @@ RAW_ERRORS = [
         "{f}:10: branch field X: 'abc' is not a number",
     ),
     (
+        HEAD + BUSES + TO_BRANCH + "1, 2, '1', 0.0, nan\n",
+        "{f}:10: branch field X: 'nan' is not a number",
+    ),
+    (HEAD + "inf, 'A', 230.0, 3\n", "{f}:4: bus field I: 'inf' is not an integer"),
+    (
         HEAD + BUSES + TO_BRANCH + "1, 2, '1', 0.01\n",
         "{f}:10: branch field X: missing (it has no default)",
     ),
@@ -541,6 +546,7 @@ DYR_ERRORS = [
         "{f}:1: TGOV1 record has 8 parameters, expected 7 (R T1 VMAX VMIN T2 T3 Dt)",
     ),
     ("1 'GENCLS' 1 3.0\n abc /\n", "{f}:1: GENCLS field D: 'abc' is not a number"),
+    ("1 'GENCLS' 1 inf 0 /\n", "{f}:1: GENCLS field H: 'inf' is not a number"),
     (
         "x 'GENCLS' 1 3.0 0.0 /\n",
         "{f}:1: GENCLS field BUS: 'x' is not a bus number",

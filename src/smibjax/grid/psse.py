@@ -277,9 +277,11 @@ _VERSIONS = (32, 33)
 
 
 def _number(tok: str, kind: str) -> float | int:
-    if kind == "f":
-        return float(tok)
     v = float(tok)
+    if not math.isfinite(v):  # nan, inf: refused like any other non-number
+        raise ValueError
+    if kind == "f":
+        return v
     if v != int(v):
         raise ValueError
     return int(v)
@@ -983,7 +985,7 @@ def _dyr_record(toks, quoted, name, line, skip, warned):
     params = {}
     for n, v in zip(names, values, strict=True):
         try:
-            params[n] = float(v)
+            params[n] = _number(v, "f")
         except ValueError:
             raise PsseError(
                 f"{where}: {model} field {n}: {v!r} is not a number"
