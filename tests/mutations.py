@@ -50,6 +50,7 @@ SIM_REF = (
 )
 SIM_OTHER = "tests/test_simulate.py::test_other_scenarios_match_scipy"
 
+PF = "tests/test_powerflow.py::"
 PSSE = "src/smibjax/grid/psse.py"
 PSSE_T = "tests/test_psse.py"
 
@@ -336,6 +337,167 @@ MUTANTS = [
         "jump = jnp.zeros(grid.shape[0] - 1 + pad, bool)",
         ("tests/test_fixed.py",),
         "Tsit5's FSAL state reused across a switch (made_jump never set)",
+    ),
+    # -- the power flow (grid/ybus.py, grid/powerflow.py) --
+    Mutant(
+        "pf-shift-sign",
+        "src/smibjax/grid/ybus.py",
+        "a = jnp.asarray(br.tap) * jnp.exp(1j * jnp.asarray(br.shift))",
+        "a = jnp.asarray(br.tap) * jnp.exp(-1j * jnp.asarray(br.shift))",
+        (
+            PF
+            + "test_ybus_equals_the_closed_form_with_a_tap_a_phase_shift_and_charging",
+            PF + "test_a_transformer_divides_the_from_voltage_by_tap_e_j_shift",
+        ),
+        "the phase shift with the wrong sign (the to end leads)",
+    ),
+    Mutant(
+        "pf-tap-on-to-side",
+        "src/smibjax/grid/ybus.py",
+        "    y_tt = y + half_b\n    y_ff = y_tt / jnp.asarray(br.tap) ** 2",
+        "    y_ff = y + half_b\n    y_tt = y_ff / jnp.asarray(br.tap) ** 2",
+        (
+            PF
+            + "test_ybus_equals_the_closed_form_with_a_tap_a_phase_shift_and_charging",
+            PF + "test_a_transformer_divides_the_from_voltage_by_tap_e_j_shift",
+        ),
+        "the off-nominal tap on the to side",
+    ),
+    Mutant(
+        "pf-branch-status-ignored",
+        "src/smibjax/grid/ybus.py",
+        "status = br.status if branch_status is None else branch_status",
+        "status = br.status",
+        (PF + "test_ybus_vmaps_over_branch_status_and_extra_shunts",),
+        "ybus ignores its branch_status argument",
+    ),
+    Mutant(
+        "pf-bus-shunt-ignored",
+        "src/smibjax/grid/ybus.py",
+        "diag = diag + bus_shunt",
+        "diag = diag",
+        (PF + "test_ybus_vmaps_over_branch_status_and_extra_shunts",),
+        "ybus ignores its bus_shunt argument",
+    ),
+    Mutant(
+        "pf-load-admittance-conj",
+        "src/smibjax/grid/ybus.py",
+        "y = (jnp.asarray(ld.p) - 1j * jnp.asarray(ld.q))",
+        "y = (jnp.asarray(ld.p) + 1j * jnp.asarray(ld.q))",
+        (PF + "test_load_admittance_draws_the_load_power_at_the_voltage",),
+        "a load's admittance p + j q (draws -q)",
+    ),
+    Mutant(
+        "pf-charging-not-halved",
+        "src/smibjax/grid/ybus.py",
+        "half_b = 0.5j * status",
+        "half_b = 1.0j * status",
+        (PF + "test_wscc9_matches_the_published_solution",),
+        "the total charging b put at each end",
+    ),
+    Mutant(
+        "pf-loads-low",
+        "src/smibjax/grid/powerflow.py",
+        "p_sched=p_gen - p_load,",
+        "p_sched=p_gen - 0.99 * p_load,",
+        (PF + "test_power_flow_equals_an_independent_rectangular_solver",),
+        "the active loads scheduled 1% low",
+    ),
+    Mutant(
+        "pf-pv-setpoint-from-bus",
+        "src/smibjax/grid/powerflow.py",
+        "v_set = jnp.where(has_gen, v_gen, jnp.asarray(b.vm))",
+        "v_set = jnp.asarray(b.vm)",
+        (PF + "test_power_flow_equals_an_independent_rectangular_solver",),
+        "PV and slack buses hold the raw file's vm, not the generators' v_set",
+    ),
+    Mutant(
+        "pf-newton-loose",
+        "src/smibjax/grid/powerflow.py",
+        "rtol=tol, atol=tol, linear_solver",
+        "rtol=1e-2, atol=1e-2, linear_solver",
+        (PF + "test_the_solution_satisfies_the_power_flow_equations",),
+        "Newton stops at a 1e-2 mismatch",
+    ),
+    Mutant(
+        "pf-dq-at-pv",
+        "src/smibjax/grid/powerflow.py",
+        "dq = jnp.where(s.fixed_v, 0.0, jnp.imag(inj) - s.q_sched)",
+        "dq = jnp.where(s.slack, 0.0, jnp.imag(inj) - s.q_sched)",
+        (PF + "test_the_solution_satisfies_the_power_flow_equations",),
+        "Q mismatches reported at PV buses, where Q is free",
+    ),
+    Mutant(
+        "pf-q-shared-equally",
+        "src/smibjax/grid/powerflow.py",
+        "q_shared = jnp.where(ok[gbus], on * qmin_ok + part, q_equal)",
+        "q_shared = q_equal",
+        (PF + "test_generators_share_their_bus",),
+        "a bus's Q shared equally, not by the generators' ranges",
+    ),
+    Mutant(
+        "pf-flat-is-case",
+        "src/smibjax/grid/powerflow.py",
+        'flat = jnp.asarray(start == "flat")',
+        "flat = jnp.asarray(False)",
+        (PF + "test_a_flat_start_ignores_the_raw_file_voltages",),
+        "start='flat' starts from the raw file",
+    ),
+    Mutant(
+        "pf-loads-no-derivative",
+        "src/smibjax/grid/powerflow.py",
+        "p_load = _bus_sum(n, lbus, jnp.asarray(ld.p))",
+        "p_load = jax.lax.stop_gradient(_bus_sum(n, lbus, jnp.asarray(ld.p)))",
+        (PF + "test_gradients_with_respect_to_the_loads_equal_finite_differences",),
+        "the loads held out of the derivative",
+    ),
+    Mutant(
+        "pf-network-no-derivative",
+        "src/smibjax/grid/powerflow.py",
+        "    Y, s = args\n",
+        "    Y, s = args\n    Y = jax.lax.stop_gradient(Y)\n",
+        (PF + "test_reverse_mode_gradients_in_network_and_generation_parameters",),
+        "the network held out of the derivative",
+    ),
+    Mutant(
+        "pf-load-q-not-scaled",
+        "src/smibjax/grid/powerflow.py",
+        "            jnp.asarray(ld.q) * load_factor,",
+        "            jnp.asarray(ld.q),",
+        (PF + "test_vmap_over_load_factors_equals_the_loop_with_one_compile",),
+        "scale_operating_point leaves the reactive loads",
+    ),
+    Mutant(
+        "pf-factors-on-host",
+        "src/smibjax/grid/powerflow.py",
+        "            jnp.asarray(ld.p) * load_factor,",
+        "            jnp.asarray(ld.p) * float(load_factor),",
+        (PF + "test_vmap_over_load_factors_equals_the_loop_with_one_compile",),
+        "the load factor read on the host (not traceable, no batch)",
+    ),
+    Mutant(
+        "pf-outage-ignored",
+        "src/smibjax/grid/powerflow.py",
+        "    Y = ybus(system, branch_status)",
+        "    Y = ybus(system)",
+        (PF + "test_vmap_over_branch_outages_equals_the_loop",),
+        "power_flow ignores branch_status",
+    ),
+    Mutant(
+        "pf-error-names-position",
+        "src/smibjax/grid/powerflow.py",
+        "mismatch_bus=jnp.asarray(system.buses.number)[worst % n],",
+        "mismatch_bus=worst % n,",
+        (PF + "test_beyond_the_nose_the_error_names_the_worst_bus",),
+        "the error names the bus position, not its number",
+    ),
+    Mutant(
+        "pf-no-slack-check",
+        "src/smibjax/grid/powerflow.py",
+        "    if not np.any(kind == SLACK):",
+        "    if False:",
+        (PF + "test_bad_input_is_one_line",),
+        "a system without a slack bus goes to Newton",
     ),
     # -- the PSS/E reader (grid/psse.py) ---------------------------------------------
     Mutant(

@@ -26,9 +26,9 @@ Sharing among the in-service generators of one bus: P is scheduled per generator
 a slack bus the bus's generation is shared in proportion to `mbase`. Q at a PV or
 slack bus is shared so that every generator sits at the same fraction of its range,
 q_i = qmin_i + (Q - sum qmin) (qmax_i - qmin_i) / sum (qmax - qmin) (MATPOWER's
-rule; with symmetric limits it is a share in proportion to the Q ranges, PSS/E's
-stated rule; that the two agree for asymmetric limits is not checked here), and
-equally if a range is not finite or the ranges sum to zero.
+rule; with symmetric limits, a share in proportion to the Q ranges; PSS/E's own
+allocation is not checked against it here), and equally if a range is not finite or
+the ranges sum to zero.
 """
 
 from __future__ import annotations
