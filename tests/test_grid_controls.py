@@ -693,6 +693,15 @@ def test_bad_records_are_refused_in_one_line():
         SEXS.from_params([0], [good]).init(
             jnp.array([7.0]), {"Vt": jnp.ones(1), "Vs": jnp.zeros(1)}
         )
+    x1 = dict(
+        zip(
+            IEEEX1.con_names[:12],
+            [0.0, 20, 0.02, 1, 1, 5, -5, 1, 0.8, 0.05, 1, 0],
+            strict=True,
+        )
+    )
+    with pytest.raises(ParameterError, match=r"^IEEEX1.SE2 = \[0.2\] is not allowed"):
+        IEEEX1.from_params([0], [{**x1, "E1": 2.0, "SE1": 0.3, "E2": 3.0, "SE2": 0.2}])
 
 
 # ---------------------------------------------------------------------------
