@@ -54,6 +54,8 @@ PF = "tests/test_powerflow.py::"
 PSSE = "src/smibjax/grid/psse.py"
 PSSE_T = "tests/test_psse.py"
 
+CONTROLS = "tests/test_grid_controls.py"
+
 MUTANTS = [
     # -- the stop-gradient on step lengths (_stepping.py) --------------------------
     Mutant(
@@ -585,6 +587,153 @@ MUTANTS = [
         "if False and",
         (f"{PSSE_T}::test_check_dynamics_errors",),
         "a generator in service without a machine record accepted",
+    ),
+    # -- grid controller models ---------------------------------------------------
+    Mutant(
+        "controls-equilibrium-sexs",
+        "src/smibjax/grid/devices/sexs.py",
+        'ref = meas["Vt"] - meas["Vs"] + y0 / self.K',
+        'ref = meas["Vt"] + y0 / self.K',
+        (f"{CONTROLS}::test_init_is_an_equilibrium",),
+        "SEXS's Vref without the stabilizer's rest value: init is not at rest",
+    ),
+    Mutant(
+        "controls-leadlag-ratio",
+        "src/smibjax/grid/devices/_blocks.py",
+        "x + T_lead / _safe(T_lag) * (u - x)",
+        "x + 0.5 * T_lead / _safe(T_lag) * (u - x)",
+        (
+            f"{CONTROLS}::test_sexs_step_response_is_the_leadlag_lag_closed_form",
+            f"{CONTROLS}::test_tgov1_lag_and_leadlag_step_responses_and_static_gain",
+        ),
+        "a lead-lag's high-frequency gain halved",
+    ),
+    Mutant(
+        "controls-tgov1-dt",
+        "src/smibjax/grid/devices/tgov1.py",
+        "return yt - self.Dt * w,",
+        "return yt,",
+        (f"{CONTROLS}::test_tgov1_lag_and_leadlag_step_responses_and_static_gain",),
+        "TGOV1's turbine damping Dt dropped",
+    ),
+    Mutant(
+        "controls-washout-gain",
+        "src/smibjax/grid/devices/stab1.py",
+        "y_w = self.K_T * (u - x[0])",
+        "y_w = self.K_T * (u - 0.9 * x[0])",
+        (f"{CONTROLS}::test_stab1_washout_step_response",),
+        "a washout whose state is weighted 0.9: it no longer washes out",
+    ),
+    Mutant(
+        "controls-2nd-order-lag",
+        "src/smibjax/grid/devices/_blocks.py",
+        "dx2 = jnp.where(second, (u - x1 - a1 * x2) / _safe(a2), 0.0)",
+        "dx2 = jnp.where(second, (u - x1 - a2 * x2) / _safe(a1), 0.0)",
+        (f"{CONTROLS}::test_ieeest_frequency_response_is_its_transfer_function",),
+        "the second-order lag's a1 and a2 swapped",
+    ),
+    Mutant(
+        "controls-nonwindup",
+        "src/smibjax/grid/devices/_blocks.py",
+        "return jnp.where(pinned, 0.0, dx)",
+        "return dx",
+        (
+            f"{CONTROLS}::test_sexs_limit_holds_the_state_and_releases_within_one_time_constant",
+            f"{CONTROLS}::test_exst1_limit_holds_the_state_and_releases_within_one_time_constant",
+            f"{CONTROLS}::test_tgov1_valve_limit_holds_the_state_and_releases_within_one_time_constant",
+        ),
+        "non-windup limits that let the state wind up",
+    ),
+    Mutant(
+        "controls-saturation-a",
+        "src/smibjax/grid/devices/ieeex1.py",
+        "A = jnp.where(on, E2 - d / am1, 0.0)",
+        "A = jnp.where(on, E2 + d / am1, 0.0)",
+        (
+            f"{CONTROLS}::test_ieeex1_saturation_fit_passes_through_both_points",
+            f"{CONTROLS}::test_ieeex1_saturation_kundur_numbers_and_no_data",
+        ),
+        "the quadratic saturation's A with the wrong sign",
+    ),
+    Mutant(
+        "controls-csvgn1-cmd-sign",
+        "src/smibjax/grid/devices/csvgn1.py",
+        "ref[1] + y2 - cmd",
+        "ref[1] + y2 + cmd",
+        (f"{CONTROLS}::test_csvgn1_reduces_to_the_paper_svc",),
+        "CSVGN1's external command with the wrong sign",
+    ),
+    Mutant(
+        "controls-ieeex1-feedback",
+        "src/smibjax/grid/devices/ieeex1.py",
+        "vf, dxf = washout(x[4], x[3], self.KF, self.TF1)",
+        "vf, dxf = washout(x[4], x[3], 0.5 * self.KF, self.TF1)",
+        (f"{CONTROLS}::test_ieeex1_against_andes",),
+        "IEEEX1's rate feedback gain halved",
+    ),
+    Mutant(
+        "controls-tgov1-lead-lag",
+        "src/smibjax/grid/devices/tgov1.py",
+        "yt, dt = leadlag(x[1], xv, self.T2, self.T3)",
+        "yt, dt = leadlag(x[1], xv, self.T3 * 0.1, self.T3)",
+        (f"{CONTROLS}::test_tgov1_against_andes",),
+        "TGOV1's turbine lead T2 replaced by T3/10",
+    ),
+    Mutant(
+        "controls-ieeest-washout",
+        "src/smibjax/grid/devices/ieeest.py",
+        "yw, d7 = washout(x[6], self.KS * y4, self.T5, self.T6)",
+        "yw, d7 = washout(x[6], self.KS * y4, self.T5, 1.1 * self.T6)",
+        (f"{CONTROLS}::test_ieeest_against_andes",),
+        "IEEEST's washout lag T6 10% long",
+    ),
+    Mutant(
+        "controls-exst1-vs-sign",
+        "src/smibjax/grid/devices/exst1.py",
+        'vi = jnp.clip(ref - vm - vf + meas["Vs"]',
+        'vi = jnp.clip(ref - vm - vf - meas["Vs"]',
+        (f"{CONTROLS}::test_exst1_special_case_is_the_smib_st1a_exciter",),
+        "EXST1's stabilizer signal subtracted",
+    ),
+    Mutant(
+        "controls-ieeest-cutoff",
+        "src/smibjax/grid/devices/ieeest.py",
+        "(vt < self.VCU)",
+        "(vt <= 99.0)",
+        (f"{CONTROLS}::test_output_limiters_and_cutoff",),
+        "IEEEST's upper voltage cutoff ignored",
+    ),
+    Mutant(
+        "controls-ke-0-rule",
+        "src/smibjax/grid/devices/ieeex1.py",
+        "ke = jnp.where(self.KE == 0, -self.se(y0), self.KE)",
+        "ke = self.KE",
+        (f"{CONTROLS}::test_ieeex1_self_excited_field_rests_at_zero_regulator_output",),
+        "KE = 0 taken as given (no self-excited field rule)",
+    ),
+    Mutant(
+        "controls-directfield",
+        "src/smibjax/grid/devices/direct.py",
+        'jnp.clip(ref + meas["Efd_cmd"]',
+        'jnp.clip(ref + 0.0 * meas["Efd_cmd"]',
+        (f"{CONTROLS}::test_direct_field_holds_efd0_plus_the_command",),
+        "DirectField ignores its command",
+    ),
+    Mutant(
+        "controls-guarded-divisor",
+        "src/smibjax/grid/devices/_blocks.py",
+        "return jnp.where(T > 0, T, 1.0)",
+        "return T",
+        (f"{CONTROLS}::test_gradients_are_finite_across_zero_time_constants",),
+        "a zero time constant divides unguarded: NaN gradients",
+    ),
+    Mutant(
+        "controls-missing-key-msg",
+        "src/smibjax/grid/devices/_blocks.py",
+        'f"{cls.__name__} record {i} (position {positions[i]}) has no {n}"',
+        'f"{cls.__name__} record {i} lacks {n}"',
+        (f"{CONTROLS}::test_bad_records_are_refused_in_one_line",),
+        "a missing dyr CON reported without the record's position",
     ),
 ]
 

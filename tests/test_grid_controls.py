@@ -7,6 +7,7 @@ import json
 from pathlib import Path
 
 import diffrax
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -185,6 +186,25 @@ def test_init_is_an_equilibrium(name, seed=0):
     assert x0.shape == (len(dev.state_names), K)
     assert float(jnp.max(jnp.abs(dev.rhs(x0, meas, ref)), initial=0.0)) < 1e-12
     np.testing.assert_allclose(dev.out(x0, meas, ref), y0, rtol=0, atol=1e-12)
+
+
+@pytest.mark.parametrize("name", ["SEXS", "IEEEST"])
+def test_gradients_are_finite_across_zero_time_constants(name):
+    """The algebraic branches (zero time constants) are jnp.where selections with
+    guarded divisors: d(rhs + out)/d(parameters) near rest stays finite."""
+    make, y0f = MODELS[name]
+    r = _rng(0)
+    dev, y0, meas = make(r), y0f(r), _meas(r)
+
+    def loss(d):
+        x0, ref = d.init(jnp.asarray(y0), meas)
+        return jnp.sum(d.rhs(x0 + 0.01, meas, ref)) + jnp.sum(
+            d.out(x0 + 0.01, meas, ref)
+        )
+
+    grads = jax.tree_util.tree_leaves(eqx.filter_grad(loss)(dev))
+    assert len(grads) == len(dev.con_names)
+    assert all(np.all(np.isfinite(np.asarray(g))) for g in grads)
 
 
 def test_ieeex1_self_excited_field_rests_at_zero_regulator_output():
@@ -673,6 +693,15 @@ def test_bad_records_are_refused_in_one_line():
         SEXS.from_params([0], [good]).init(
             jnp.array([7.0]), {"Vt": jnp.ones(1), "Vs": jnp.zeros(1)}
         )
+    x1 = dict(
+        zip(
+            IEEEX1.con_names[:12],
+            [0.0, 20, 0.02, 1, 1, 5, -5, 1, 0.8, 0.05, 1, 0],
+            strict=True,
+        )
+    )
+    with pytest.raises(ParameterError, match=r"^IEEEX1.SE2 = \[0.2\] is not allowed"):
+        IEEEX1.from_params([0], [{**x1, "E1": 2.0, "SE1": 0.3, "E2": 3.0, "SE2": 0.2}])
 
 
 # ---------------------------------------------------------------------------

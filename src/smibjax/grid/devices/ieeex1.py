@@ -25,7 +25,8 @@ Saturation (PSS/E's for IEEEX1/EXDC2, ANDES `ExcQuadSat`), the default
     B = SE2 E2 (a - 1)^2 / (E1 - E2)^2,
 
 the curve through (E1, SE1) and (E2, SE2); SE1 E1 = 0 or SE2 = 0 (no data)
-disables it (B = 0), as in ANDES. `saturation="exponential"` takes instead
+disables it (B = 0), as in ANDES; SE1 E1 = SE2 E2 != 0 has no such curve and is
+refused. `saturation="exponential"` takes instead
 SE(Efd) = A e^{B Efd} through the same points (B = ln(SE2/SE1)/(E2 - E1), A = SE1
 e^{-B E1}; off where either SE is 0); it is not a PSS/E choice for these models.
 
@@ -155,6 +156,21 @@ class _DCExciter(AbstractController):
                     "TF1",
                     lambda o: (v(o, "TF1") > 0) | (v(o, "KF") == 0),
                     "must be > 0 where KF != 0",
+                ),
+                (
+                    "SE2",
+                    lambda o: (
+                        (o.saturation != "quadratic")
+                        | (v(o, "SE1") * v(o, "E1") == 0)
+                        | (v(o, "SE2") * v(o, "E2") == 0)
+                        | ~np.isclose(
+                            v(o, "SE1") * v(o, "E1"),
+                            v(o, "SE2") * v(o, "E2"),
+                            rtol=1e-9,
+                        )
+                    ),
+                    "must make SE2 E2 != SE1 E1 (no quadratic curve passes "
+                    "through both points)",
                 ),
             ],
         )
