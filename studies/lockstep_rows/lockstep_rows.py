@@ -4,10 +4,10 @@ slice's width x its slowest lane's steps) of the chunks as run (index order, chu
 on 2 devices: slices of 128) and with the rows ordered by their own steps (a perfect
 cost predictor), by t_reclose and by the reclosing delay t_reclose - t_clear; and the
 Spearman rank correlation of the steps with each scenario input. Writes
-benchmarks/results/lockstep_rows.json.
+studies/lockstep_rows/lockstep_rows.json.
 
     python benchmarks/cli_rate.py --keep DIR   # keeps DIR/VARIANT.csv (8,192 rows)
-    python benchmarks/lockstep_rows.py DIR/*.csv [--width 128]
+    python studies/lockstep_rows/lockstep_rows.py DIR/*.csv [--width 128]
 """
 
 from __future__ import annotations
@@ -30,7 +30,7 @@ def main() -> None:
     ap.add_argument("csv", nargs="+")
     ap.add_argument("--width", type=int, default=128)
     ap.add_argument(
-        "--out", default=str(Path(__file__).parent / "results" / "lockstep_rows.json")
+        "--out", default=str(Path(__file__).resolve().parent / "lockstep_rows.json")
     )
     args = ap.parse_args()
     out = {}

@@ -7,14 +7,21 @@ delay t_reclose - t_clear: the longer the line is out, the shorter the settled t
 Spearman -0.98 with the AFTSC step counts on 8,192 scenarios), chunk by chunk through
 the batch engine, the two orders alternated.
 
-    python benchmarks/lanes.py [--n 4096] [--chunk 256] [--controller aftsc]
+    python studies/lanes/lanes.py [--n 4096] [--chunk 256] [--controller aftsc]
         [--phi-layer 0]
 
-Writes benchmarks/results/lanes[_TAG].json. Nothing in the Monte Carlo command
+Writes studies/lanes/lanes[_TAG].json. Nothing in the Monte Carlo command
 changes: this only measures what ordering would give.
 """
 
 from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent  # this study: its script and results
+ROOT = HERE.parents[1]
+sys.path.insert(0, str(ROOT / "benchmarks"))  # _common, _results
 
 from smibjax.cli.process import configure_process
 
@@ -22,7 +29,6 @@ configure_process(cache=False)
 
 import argparse
 import time
-from pathlib import Path
 
 import jax
 import numpy as np
@@ -42,7 +48,7 @@ def main() -> None:
     ap.add_argument("--controller", choices=["aftsc", "asc"], default="aftsc")
     ap.add_argument("--phi-layer", type=float, default=0.0)
     ap.add_argument("--tag", default="")
-    ap.add_argument("--out", default=str(Path(__file__).parent / "results"))
+    ap.add_argument("--out", default=str(HERE))
     args = ap.parse_args()
     g = sj.Gains.paper(args.controller, beta1=-1.0, beta2=-1.0)
     ctrl = Synergetic(g, True, None, args.phi_layer)

@@ -4,7 +4,7 @@ boundary layers of the evolution law (`phi_layer` = W, README "Controllers"), th
 law; also the lockstep waste of the chunks (steps of the slowest lane against the
 mean; a vmapped adaptive solve costs its slowest lane's steps times its width).
 
-    python benchmarks/tail.py [--n 4096] [--chunk 256] [--controller aftsc]
+    python studies/tail/tail.py [--n 4096] [--chunk 256] [--controller aftsc]
         [--widths 1e-3 3e-3 1e-2] [--gains FILE]
 
 Default: AFTSC, beta1 = beta2 = -1 (issue 15), oracle adaptation, the paper's plant,
@@ -12,10 +12,17 @@ the default scenario distribution, seed 0, rtol 1e-6, atol 1e-8. `--gains FILE`:
 file's gains, plant and options instead (its own phi_layer is replaced by each W).
 Timing: chunk by chunk, the variants alternate, so that contention on the machine
 affects them alike; each variant's first chunk (compile) is run once before. Writes
-benchmarks/results/tail[_TAG].json and .md.
+studies/tail/tail[_TAG].json and .md.
 """
 
 from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent  # this study: its script and results
+ROOT = HERE.parents[1]
+sys.path.insert(0, str(ROOT / "benchmarks"))  # _common, _results
 
 from smibjax.cli.process import configure_process
 
@@ -23,7 +30,6 @@ configure_process(cache=False)
 
 import argparse
 import time
-from pathlib import Path
 
 import jax
 import numpy as np
@@ -178,7 +184,7 @@ def main() -> None:
     ap.add_argument("--widths", type=float, nargs="+", default=[1e-3, 3e-3, 1e-2])
     ap.add_argument("--gains", metavar="FILE", help="a gains file instead")
     ap.add_argument("--tag", default="")
-    ap.add_argument("--out", default=str(Path(__file__).parent / "results"))
+    ap.add_argument("--out", default=str(HERE))
     args = ap.parse_args()
     widths = [0.0, *args.widths]
     specs = {w: spec_of(args, w) for w in widths}

@@ -5,10 +5,10 @@ default scenario distribution with D drawn in [0.1, 0.4], critical clearing time
 five fault locations (criteria synchronism and settled), and their trajectories on
 the paper's fault.
 
-    python benchmarks/controllers.py [--n 10000] [--gains LABEL:FILE ...]
+    python studies/controllers/controllers.py [--n 10000] [--gains LABEL:FILE ...]
         [--work DIR]
 
-Writes benchmarks/results/controllers.json (per controller: Monte Carlo summary,
+Writes studies/controllers/controllers.json (per controller: Monte Carlo summary,
 effort, peak Vt and commanded inputs, CCT, the paper's fault), controllers.md (the
 table) and docs/figures/controllers_paper_fault.png. `--work DIR` keeps each
 controller's finished results there and reuses them on a rerun with the same
@@ -23,8 +23,9 @@ import sys
 import time
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
+HERE = Path(__file__).resolve().parent  # this study: its script and results
+ROOT = HERE.parents[1]
+sys.path.insert(0, str(ROOT / "benchmarks"))  # _results
 
 from smibjax.cli.process import configure_process, enable_compilation_cache
 
@@ -145,7 +146,7 @@ def main(argv=None) -> int:
     ap.add_argument("--n", type=int, default=10_000)
     ap.add_argument("--chunk", type=int, default=1024)
     ap.add_argument("--gains", nargs="*", default=[], metavar="LABEL:FILE")
-    ap.add_argument("--out", default=str(ROOT / "benchmarks" / "results"))
+    ap.add_argument("--out", default=str(HERE))
     ap.add_argument("--work", help="folder of finished per-controller results")
     args = ap.parse_args(argv)
     enable_compilation_cache()

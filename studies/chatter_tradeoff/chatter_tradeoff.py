@@ -2,13 +2,13 @@
 `chatter` term (issue 13, "No bang-bang by accident"), and the cross-entropy search on
 the same problem for reference; every result on the same validation set.
 
-    python benchmarks/chatter_tradeoff.py [--weights 0 0.3 1] [--n-val 64]
-    python benchmarks/chatter_tradeoff.py --from-runs w=0:DIR w=0.3:DIR search:DIR
+    python studies/chatter_tradeoff/chatter_tradeoff.py [--weights 0 0.3 1] [--n-val 64]
+    python studies/chatter_tradeoff/chatter_tradeoff.py --from-runs w=0:DIR w=0.3:DIR search:DIR
 
 Each run is `python -m tuning.optimize` on the default config with `[loss] chatter`
 set (and `[validation] n`); `--from-runs` reads finished run folders instead (their
 `gains.json`). Every set is scored on the default config's validation set. Writes
-benchmarks/results/chatter_tradeoff.json and docs/figures/chatter_tradeoff.png.
+studies/chatter_tradeoff/chatter_tradeoff.json and docs/figures/chatter_tradeoff.png.
 """
 
 from __future__ import annotations
@@ -27,8 +27,9 @@ from pathlib import Path
 
 from smibjax.cli.files import write_text
 
-ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
+HERE = Path(__file__).resolve().parent  # this study: its script and results
+ROOT = HERE.parents[1]
+sys.path.insert(0, str(ROOT))  # the tuning package
 
 
 def _best(run: Path, n_val: int) -> dict:
@@ -59,7 +60,7 @@ def main(argv=None) -> int:
     ap.add_argument("--weights", type=float, nargs="+", default=[0.0, 0.3, 1.0])
     ap.add_argument("--n-val", type=int, default=256)
     ap.add_argument("--from-runs", nargs="+", metavar="LABEL:DIR")
-    ap.add_argument("--out", default=str(ROOT / "benchmarks" / "results"))
+    ap.add_argument("--out", default=str(HERE))
     args = ap.parse_args(argv)
     rows = {}
     if args.from_runs:

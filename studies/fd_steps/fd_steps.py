@@ -13,9 +13,9 @@ The setup is that test's: the tiny default config (realistic limits, realizable
 adaptation, projection, boundary layer, D drawn, adaptive Tsit5 at rtol 1e-8), the
 buildable start (beta1 = beta2 = -1, T1 = 0.02, T2 = 0.5, gamma = 0.5, k = 0), k1, k2,
 c1, c2 frozen, --batch faults from PRNGKey(--key). Prints a table and writes
-benchmarks/results/fd_steps[_TAG].json.
+studies/fd_steps/fd_steps[_TAG].json.
 
-    python benchmarks/fd_steps.py [--t-end 3] [--key 7] [--batch 2] [--param NAME]
+    python studies/fd_steps/fd_steps.py [--t-end 3] [--key 7] [--batch 2] [--param NAME]
 """
 
 from __future__ import annotations
@@ -26,16 +26,17 @@ from pathlib import Path
 from smibjax.cli.process import configure_process
 
 configure_process(host_devices=False)  # one device: the tests' training step
-HERE = Path(__file__).resolve().parent
-sys.path.insert(0, str(HERE))
-sys.path.insert(0, str(HERE.parent))  # the tuning package
+HERE = Path(__file__).resolve().parent  # this study: its script and results
+ROOT = HERE.parents[1]
+sys.path.insert(0, str(ROOT / "benchmarks"))  # _common, _results
+sys.path.insert(0, str(ROOT))  # the tuning package
 
 import argparse
 import dataclasses
 
 import jax
 import numpy as np
-from _common import DEFAULT_OUT, result_name
+from _common import result_name
 from _results import write_results
 
 import smibjax as sj
@@ -56,7 +57,7 @@ def main() -> None:
     ap.add_argument("--key", type=int, default=7, help="PRNGKey of the batch")
     ap.add_argument("--batch", type=int, default=2)
     ap.add_argument("--param", help="raw parameter (default: the largest gradient)")
-    ap.add_argument("--out", default=str(DEFAULT_OUT))
+    ap.add_argument("--out", default=str(HERE))
     ap.add_argument("--tag", default="")
     args = ap.parse_args()
 

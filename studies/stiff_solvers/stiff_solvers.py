@@ -7,9 +7,9 @@ through scipy.integrate.solve_ivp with explicit and implicit methods at the defa
 tolerances (rtol 1e-6, atol 1e-8), one call per network stage, for alpha = 5/7
 (AFTSC) and alpha = 1 (ASC), and counts steps (all, and after --tail s), right-hand
 side evaluations and Jacobians. Prints a table and writes
-benchmarks/results/stiff_solvers.json and stiff_solvers.png.
+studies/stiff_solvers/stiff_solvers.json and stiff_solvers.png.
 
-    python benchmarks/stiff_solvers.py [--methods RK45 Radau BDF LSODA] [--t-end 10]
+    python studies/stiff_solvers/stiff_solvers.py [--methods RK45 Radau BDF LSODA] [--t-end 10]
 """
 
 from __future__ import annotations
@@ -20,9 +20,10 @@ import sys
 import time
 from pathlib import Path
 
-HERE = Path(__file__).resolve().parent
-sys.path.insert(0, str(HERE))
-sys.path.insert(0, str(HERE.parent / "tests"))  # reference.py, the SciPy model
+HERE = Path(__file__).resolve().parent  # this study: its script and results
+ROOT = HERE.parents[1]
+sys.path.insert(0, str(ROOT / "benchmarks"))  # _common, _results
+sys.path.insert(0, str(ROOT / "tests"))  # reference.py, the SciPy model
 
 import matplotlib
 import numpy as np
@@ -32,7 +33,6 @@ import reference
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
-from _common import DEFAULT_OUT
 from _results import write_results
 
 from smibjax.cli.plotting import save_figure
@@ -46,7 +46,7 @@ def parse_args(argv=None):
     ap.add_argument("--methods", nargs="+", default=["RK45", "Radau", "BDF", "LSODA"])
     ap.add_argument("--t-end", type=float, default=10.0, help="scenario length (s)")
     ap.add_argument("--tail", type=float, default=4.0, help="tail starts here (s)")
-    ap.add_argument("--out", default=str(DEFAULT_OUT))
+    ap.add_argument("--out", default=str(HERE))
     return ap.parse_args(argv)
 
 

@@ -12,14 +12,20 @@
    the samples costs), and scenarios/s.
 
 AFTSC (alpha = 5/7) and ASC (alpha = 1). Prints a table and writes
-benchmarks/results/field_cost.json.
+studies/field_cost/field_cost.json.
 
-    python benchmarks/field_cost.py [--lanes 128] [--evals 2000] [--n 256] [--repeat 3]
+    python studies/field_cost/field_cost.py [--lanes 128] [--evals 2000] [--n 256] [--repeat 3]
 """
 
 from __future__ import annotations
 
 import os
+import sys
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent  # this study: its script and results
+ROOT = HERE.parents[1]
+sys.path.insert(0, str(ROOT / "benchmarks"))  # _common, _results
 
 # one core: the per-lane figures do not depend on how a batch is split
 os.environ["XLA_FLAGS"] = "--xla_force_host_platform_device_count=1"
@@ -31,7 +37,6 @@ configure_process(cache=False)
 import argparse
 import re
 import time
-from pathlib import Path
 
 import jax
 import jax.numpy as jnp
@@ -113,7 +118,7 @@ def main() -> None:
     ap.add_argument("--evals", type=int, default=2000)
     ap.add_argument("--n", type=int, default=256)
     ap.add_argument("--repeat", type=int, default=3)
-    ap.add_argument("--out", default=str(Path(__file__).parent / "results"))
+    ap.add_argument("--out", default=str(HERE))
     args = ap.parse_args()
     rows = {}
     for name in ("aftsc", "asc"):

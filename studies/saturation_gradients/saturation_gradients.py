@@ -14,9 +14,9 @@ measures:
   against the reference path's FD gradient (what the continuous loss's gradient is);
 - the time of one value-and-grad (one scenario, warm).
 
-    python benchmarks/saturation_gradients.py [--quick] [--out DIR]
+    python studies/saturation_gradients/saturation_gradients.py [--quick] [--out DIR]
 
-Writes `saturation_gradients.json` and `.png` under benchmarks/results/.
+Writes `saturation_gradients.json` and `.png` beside this script (studies/saturation_gradients/).
 """
 
 from __future__ import annotations
@@ -31,13 +31,15 @@ import sys
 import time
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
+HERE = Path(__file__).resolve().parent  # this study: its script and results
+ROOT = HERE.parents[1]
+sys.path.insert(0, str(ROOT / "benchmarks"))  # _common, _results
+sys.path.insert(0, str(ROOT))  # the tuning package
 
 import jax
 import jax.numpy as jnp
 import numpy as np
-from benchmarks._results import write_results
+from _results import write_results
 
 import smibjax as sj
 from smibjax.cli.plotting import save_figure
@@ -80,7 +82,7 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="one path, one fault")
     ap.add_argument("--t-end", type=float, default=8.0)
-    ap.add_argument("--out", default=str(Path(__file__).parent / "results"))
+    ap.add_argument("--out", default=str(HERE))
     args = ap.parse_args(argv)
     enable_compilation_cache()
     space = GainSpace.build(

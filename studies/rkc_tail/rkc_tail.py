@@ -15,15 +15,21 @@ interpolation). The table gives the tail's accepted and rejected steps and field
 evaluations (Tsit5 6 a step, RKC2 s a step), and the largest differences of the
 samples (delta, omega, E', B) and of delta's settling time from the all-Tsit5
 two-phase run. First it checks the method's order on y' = -50 y + cos t. Writes
-benchmarks/results/rkc_tail.json.
+studies/rkc_tail/rkc_tail.json.
 
-    python benchmarks/rkc_tail.py [--n 128] [--delay 1.0] [--stages 4 6 8]
+    python studies/rkc_tail/rkc_tail.py [--n 128] [--delay 1.0] [--stages 4 6 8]
         [--controller asc]
 """
 
 from __future__ import annotations
 
 import os
+import sys
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent  # this study: its script and results
+ROOT = HERE.parents[1]
+sys.path.insert(0, str(ROOT / "benchmarks"))  # _common, _results
 
 os.environ["XLA_FLAGS"] = "--xla_force_host_platform_device_count=1"
 
@@ -32,7 +38,6 @@ from smibjax.cli.process import configure_process
 configure_process(cache=False)
 
 import argparse
-from pathlib import Path
 from typing import ClassVar
 
 import diffrax as dfx
@@ -177,7 +182,7 @@ def main() -> None:
     ap.add_argument("--delay", type=float, default=1.0)
     ap.add_argument("--stages", type=int, nargs="+", default=[4, 6, 8])
     ap.add_argument("--controller", choices=("asc", "aftsc"), default="asc")
-    ap.add_argument("--out", default=str(Path(__file__).parent / "results"))
+    ap.add_argument("--out", default=str(HERE))
     args = ap.parse_args()
     if args.n < 1:
         ap.error(f"--n {args.n} is not allowed: must be >= 1")

@@ -11,9 +11,10 @@ simulations; every result scored on the same validation set with the exact metri
   `--search-batch` scenarios (mean delta settling, 20 s for an unstable run), one
   candidate = `--search-batch` simulations, until the budget is spent.
 
-Prints a table, writes benchmarks/results/tuning_vs_gradient_free.json and .png.
+Prints a table, writes tuning_vs_gradient_free.json and .png beside this script.
 
-    python benchmarks/tuning_vs_gradient_free.py [--budget 3840] [--search-batch 24]
+    python studies/tuning_vs_gradient_free/tuning_vs_gradient_free.py \
+        [--budget 3840] [--search-batch 24]
 """
 
 from __future__ import annotations
@@ -24,7 +25,10 @@ import tempfile
 import time
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+HERE = Path(__file__).resolve().parent  # this study: its script and results
+ROOT = HERE.parents[1]
+sys.path.insert(0, str(ROOT))  # the tuning package
+sys.path.insert(0, str(ROOT / "benchmarks"))  # _results
 
 from smibjax.cli.process import configure_process, enable_compilation_cache
 
@@ -55,7 +59,7 @@ def main(argv=None) -> int:
     ap.add_argument("--search-batch", type=int, default=24)
     ap.add_argument("--population", type=int, default=24)
     ap.add_argument("--validation", type=int, default=256)
-    ap.add_argument("--out", default=str(Path(__file__).parent / "results"))
+    ap.add_argument("--out", default=str(HERE))
     args = ap.parse_args(argv)
     enable_compilation_cache()
     cfg = load_config()

@@ -5,9 +5,9 @@ PYTHONPATH), and every column compared: verdicts changed (stable, lost_sync,
 budget_exhausted), the largest settling-time difference (s), the largest relative
 difference of every other column, and the mean step counts. For a change that should
 move results by rounding only (issue 15's criterion: every verdict unchanged, settling
-within 5 ms). Writes benchmarks/results/rows_compare[_TAG].json.
+within 5 ms). Writes studies/rows_compare/rows_compare[_TAG].json.
 
-    python benchmarks/rows_compare.py REV [--n 4096] [--controllers aftsc asc]
+    python studies/rows_compare/rows_compare.py REV [--n 4096] [--controllers aftsc asc]
         [--extra ARG ...] [--tag NAME]
 """
 
@@ -16,8 +16,8 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-HERE = Path(__file__).resolve().parent
-sys.path.insert(0, str(HERE))
+HERE = Path(__file__).resolve().parent  # this study: its script and results
+sys.path.insert(0, str(HERE.parents[1] / "benchmarks"))  # cli_rate, _common, _results
 
 import argparse
 import tempfile
@@ -60,7 +60,7 @@ def main() -> None:
     ap.add_argument("--n", type=int, default=4096)
     ap.add_argument("--controllers", nargs="+", default=["aftsc", "asc"])
     ap.add_argument("--extra", nargs="*", default=[], help="more command options")
-    ap.add_argument("--out", default=str(HERE / "results"))
+    ap.add_argument("--out", default=str(HERE))
     ap.add_argument("--tag", default="")
     args = ap.parse_args()
     from _common import result_name
