@@ -167,7 +167,7 @@ def timing_line(name: str, rc: int, wall: float, cpu: float) -> str:
 
 def _time_each(cache: str) -> None:
     """Run the tiny scripts one after another (not side by side) with the compilation
-    cache in `cache` and print each one's wall and CPU seconds (the README's
+    cache in `cache` and print each one's wall and CPU seconds (docs/performance.md's
     figures: `python tests/bench_chain.py /tmp/empty-cache`)."""
     import resource
     import tempfile
