@@ -1,5 +1,5 @@
-"""The benchmark scripts' tiny runs, one after another in two background threads
-(`LANES`).
+"""The benchmark scripts' tiny runs (benchmarks/NAME.py, and one study,
+studies/stiff_solvers/), one after another in two background threads (`LANES`).
 
 Under pytest-xdist the chains run in the controller process, which runs no tests:
 they start at the beginning of the session (`conftest.pytest_configure`), beside the
@@ -24,6 +24,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 BENCH = ROOT / "benchmarks"
+STUDIES = ROOT / "studies"
 ENV = "SMIBJAX_BENCH_DIR"  # where the controller's chain writes (set for the workers)
 TIMEOUT = 600  # s, per script
 
@@ -72,6 +73,13 @@ LANES = (
 )
 
 
+def script(name: str) -> Path:
+    """The script of `name` (a key of `TINY`): benchmarks/NAME.py, else the study's
+    studies/NAME/NAME.py."""
+    path = BENCH / f"{name}.py"
+    return path if path.is_file() else STUDIES / name / f"{name}.py"
+
+
 def start(folder: Path, names) -> list[Chain]:
     """Start `names` (keys of `TINY`) as up to two chains (`LANES`) into `folder`."""
     lanes = [[n for n in lane if n in names] for lane in LANES]
@@ -115,7 +123,7 @@ class Chain:
                     if self._stop.is_set():
                         return
                     self._proc = subprocess.Popen(
-                        [sys.executable, str(BENCH / f"{name}.py"), *TINY[name]]
+                        [sys.executable, str(script(name)), *TINY[name]]
                         + ["--out", str(out)],
                         cwd=ROOT,
                         env=env,
@@ -159,7 +167,7 @@ def timing_line(name: str, rc: int, wall: float, cpu: float) -> str:
 
 def _time_each(cache: str) -> None:
     """Run the tiny scripts one after another (not side by side) with the compilation
-    cache in `cache` and print each one's wall and CPU seconds (the README's
+    cache in `cache` and print each one's wall and CPU seconds (docs/performance.md's
     figures: `python tests/bench_chain.py /tmp/empty-cache`)."""
     import resource
     import tempfile
@@ -169,7 +177,7 @@ def _time_each(cache: str) -> None:
     with tempfile.TemporaryDirectory(prefix="smibjax-bench-time-") as tmp:
         for name in [n for lane in LANES for n in lane]:
             r0, t0 = resource.getrusage(resource.RUSAGE_CHILDREN), time.monotonic()
-            cmd = [sys.executable, str(BENCH / f"{name}.py"), *TINY[name]]
+            cmd = [sys.executable, str(script(name)), *TINY[name]]
             rc = subprocess.run(
                 [*cmd, "--out", str(Path(tmp) / name)],
                 cwd=ROOT,

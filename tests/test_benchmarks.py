@@ -1,6 +1,7 @@
-"""The benchmark scripts of benchmarks/ run end to end on tiny configurations, so that
-they cannot rot. No wall-clock assertions: exit status 0, the JSON's keys, finite
-positive numbers, and the accuracy figures the scripts check.
+"""The benchmark scripts of benchmarks/ (and the study studies/stiff_solvers/) run end
+to end on tiny configurations, so that they cannot rot. No wall-clock assertions:
+exit status 0, the JSON's keys, finite positive numbers, and the accuracy figures the
+scripts check.
 
 The scripts run one after another in two background chains (`bench_chain`): under
 pytest-xdist in the controller process from the start of the session, beside the

@@ -1,13 +1,15 @@
 """The documentation site (mkdocs.yml): `mkdocs build --strict` succeeds, so every
-`:::` name of the API reference resolves, every README section is a guide page of the
-nav and every link and figure of the site resolves; and the API reference covers the
-public names (`__all__`) of the modules it documents."""
+page of docs/ is in the nav, every `:::` name of the API reference resolves and every
+link and figure of the site resolves; the API reference covers the public names
+(`__all__`) of the modules it documents; the README stays a landing page; and the code
+the README and docs/getting-started.md show runs as written."""
 
 import ast
 import os
 import re
 import subprocess
 import sys
+import textwrap
 from pathlib import Path
 
 import pytest
@@ -42,19 +44,21 @@ def site(tmp_path_factory):
     return out
 
 
-def _readme_sections() -> list[str]:
-    text = (ROOT / "README.md").read_text(encoding="utf-8")
-    text = re.sub(r"^```.*?^```", "", text, flags=re.S | re.M)  # no code blocks
-    return re.findall(r"^## (.+)$", text, flags=re.M)
-
-
-def test_strict_build_renders_the_guide_and_the_api_reference(site):
+def test_strict_build_renders_the_pages_and_the_api_reference(site):
     home = (site / "index.html").read_text(encoding="utf-8")
-    assert "smibjax is a differentiable simulator" in home  # the README's intro
-    guide = sorted(p.name for p in (site / "guide").iterdir() if p.is_dir())
-    assert len(guide) == len(_readme_sections())
-    figures = site / "guide" / "what-reproduces-and-what-does-not" / "index.html"
-    assert 'src="../../figures/paper_fig3_states.png"' in figures.read_text("utf-8")
+    assert "smibjax is a differentiable simulator" in home
+    pages = [p.stem for p in (ROOT / "docs").glob("*.md") if p.stem != "index"]
+    assert {"getting-started", "model", "performance", "contributing"} <= set(pages)
+    for page in pages:  # each page of docs/ is a page of the site
+        assert (site / page / "index.html").is_file(), page
+    figures = (site / "reproduce" / "index.html").read_text("utf-8")
+    assert 'src="../figures/paper_fig3_states.png"' in figures
+    model = (site / "model" / "index.html").read_text(encoding="utf-8")
+    # the sections the code cites by number
+    for n, title in enumerate(
+        ("Plant", "Controller", "Numerical hazards", "Metrics"), 1
+    ):
+        assert f'id="{n}-{title.lower().replace(" ", "-")}"' in model, title
 
     api = (site / "api" / "simulate" / "index.html").read_text(encoding="utf-8")
     assert "simulate" in api
@@ -64,6 +68,62 @@ def test_strict_build_renders_the_guide_and_the_api_reference(site):
     # A field's comment is its docstring (docs/hooks/comment_docstrings.py).
     plant = (site / "api" / "parameters" / "index.html").read_text(encoding="utf-8")
     assert "inertia constant (s)" in plant
+
+
+def test_readme_is_a_landing_page():
+    readme = (ROOT / "README.md").read_bytes()
+    assert len(readme) <= 8 * 1024, len(readme)
+    text = readme.decode("utf-8")
+    commands = re.search(r"^```bash\n(.*?)^```", text, flags=re.S | re.M).group(1)
+    assert commands.splitlines() == [
+        "pip install -e . && python -m tuning.optimize",
+        'pip install -e ".[test]" && python -m pytest',
+    ]
+    for link in re.findall(r"\]\((docs/[^)#]+)", text):
+        assert (ROOT / link).is_file(), link
+
+
+def _python_blocks(path: Path) -> list[str]:
+    text = path.read_text(encoding="utf-8")
+    return [
+        textwrap.dedent(m.group(1))
+        for m in re.finditer(r"^```python\n(.*?)^```", text, flags=re.S | re.M)
+    ]
+
+
+def test_the_readme_and_getting_started_code_runs():
+    """The README's example, then every ```python block of getting-started.md in
+    order, in one fresh process (the blocks build on each other, as a reader's session
+    would). Each block asserts the numbers it prints."""
+    readme = _python_blocks(ROOT / "README.md")
+    guide = _python_blocks(ROOT / "docs" / "getting-started.md")
+    assert len(readme) == 1 and len(guide) >= 3
+    blocks = [("README.md", readme[0])] + [
+        (f"getting-started.md block {i}", b) for i, b in enumerate(guide, 1)
+    ]
+    script = "\n".join(f"print({name!r}, flush=True)\n{code}" for name, code in blocks)
+    env = {
+        **os.environ,
+        "MPLBACKEND": "Agg",
+        "PYTHONPATH": str(ROOT / "src"),
+        # the suite's persistent cache (JAX reads these): a warm rerun skips XLA
+        "JAX_COMPILATION_CACHE_DIR": str(ROOT / ".jax_cache"),
+        "JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS": "0.5",
+    }
+    proc = subprocess.run(
+        [sys.executable, "-c", script],
+        cwd=ROOT,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
+    assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-4000:]
+    out = proc.stdout.splitlines()
+    # the README's comments: "True 4.48 (s from the fault)", then "True"
+    stable, settling = out[out.index("README.md") + 1].split()
+    assert stable == "True" and abs(float(settling) - 4.48) < 0.01
+    assert out[out.index("README.md") + 2] == "True"
 
 
 def _module_file(name: str) -> Path | None:
