@@ -2,13 +2,15 @@
 devices (see `base`)."""
 
 from .csvgn1 import CSVGN1 as CSVGN1
-from .direct import DirectField as DirectField, DirectSVC as DirectSVC
+from .direct import DirectField as DirectField
+from .direct import DirectSVC as DirectSVC
 from .exst1 import EXST1 as EXST1
 from .gencls import GENCLS as GENCLS
 from .genrou import GENROU as GENROU
 from .gentra import GENTRA as GENTRA
 from .ieeest import IEEEST as IEEEST
-from .ieeex1 import EXDC2 as EXDC2, IEEEX1 as IEEEX1
+from .ieeex1 import EXDC2 as EXDC2
+from .ieeex1 import IEEEX1 as IEEEX1
 from .sexs import SEXS as SEXS
 from .stab1 import STAB1 as STAB1
 from .tgov1 import TGOV1 as TGOV1
