@@ -272,8 +272,10 @@ def evaluate(case: Case, op: Operating, mats: StageMatrices, stage, y, u=None):
         g = np.asarray(lay.machine_gen[k], dtype=np.int64)
         vt = v_p[np.asarray(lay.machine_port[k], dtype=np.int64)]
         vgen.append(vt)
+        on = gst[g]
         for k, val in m.measure(x, vt, h, s_base).items():
             if k in meas:
+                val = val * on if k in ("Pe", "Qe", "It", "Te") else val
                 meas[k] = meas[k].at[g].set(val)
     cmd = {"Vs": jnp.zeros(n_gen), "Efd": jnp.zeros(n_gen), "Pm": jnp.zeros(n_gen)}
     for gt, h in zip(lay.machine_gen, op.held, strict=True):
