@@ -1,0 +1,576 @@
+"""The commands on a multi-machine case (`--case NAME` or `--case FILE.raw --dyr
+FILE.dyr`): `simulate`, `montecarlo` and `cct` hand over here when `--case` is given.
+
+Events from the command line (times in s, buses and branches by PSS/E numbers):
+`--fault-bus B` (a three-phase fault at bus B from --fault-time to --clear-time,
+through --fault-reactance), `--fault-line A-B[:CKT]` (a fault at --fault-location
+along the line, cleared by opening it at --clear-time; `--reclose` recloses it at
+--reclose-time), `--trip-line A-B[:CKT]` and `--trip-gen BUS[:ID]` (at --fault-time).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from .options import CLIError
+
+__all__ = ["add_case_options", "run_simulate", "run_montecarlo", "run_cct", "load"]
+
+
+def add_case_options(p, events: bool = True) -> None:
+    """The options that choose a multi-machine case (and, for `events`, the events
+    of one run)."""
+    g = p.add_argument_group("multi-machine case (smibjax.grid)")
+    g.add_argument(
+        "--case",
+        metavar="NAME|FILE.raw",
+        help="a built-in case (kundur, kundur-gencls, kundur-nopss, ieee39, "
+        "ieee39-pss, ieee39-gencls, smib, smib-gencls) or a PSS/E v33 raw file "
+        "(with --dyr); without it the command runs the paper's SMIB",
+    )
+    g.add_argument(
+        "--dyr", metavar="FILE.dyr", help="the dyr file of a --case raw file"
+    )
+    g.add_argument(
+        "--param",
+        action="append",
+        default=[],
+        metavar="MODEL.PARAM=VALUE",
+        help="set a device parameter (e.g. IEEEST.KS=20, SEXS[1:1].K=150); repeatable",
+    )
+    g.add_argument(
+        "--load-factor",
+        type=float,
+        default=1.0,
+        help="scale every load (P and Q) and the non-slack generation (default 1)",
+    )
+    if events:
+        g.add_argument("--fault-bus", type=int, metavar="BUS", help="bus fault at BUS")
+        g.add_argument(
+            "--fault-line", metavar="A-B[:CKT]", help="fault on a line, opened to clear"
+        )
+        g.add_argument(
+            "--reclose",
+            action="store_true",
+            help="reclose --fault-line at --reclose-time",
+        )
+        g.add_argument("--trip-line", metavar="A-B[:CKT]", help="open a line")
+        g.add_argument("--trip-gen", metavar="BUS[:ID]", help="trip a generator")
+
+
+def _branch_spec(text: str, flag: str):
+    a, sep, rest = text.partition("-")
+    b, _, ckt = rest.partition(":")
+    try:
+        spec = (int(a), int(b)) + ((ckt.strip(),) if ckt.strip() else ())
+    except ValueError:
+        raise CLIError(
+            f"{flag} {text!r} is not allowed: expected FROM-TO[:CKT]"
+        ) from None
+    if not sep:
+        raise CLIError(f"{flag} {text!r} is not allowed: expected FROM-TO[:CKT]")
+    return spec
+
+
+def _params(items) -> dict:
+    out = {}
+    for item in items:
+        name, sep, value = item.partition("=")
+        try:
+            out[name.strip()] = float(value)
+        except ValueError:
+            sep = ""
+        if not sep or not math.isfinite(out.get(name.strip(), math.nan)):
+            raise CLIError(
+                f"--param {item!r} is not allowed: expected MODEL.PARAM=VALUE with a "
+                "finite number"
+            )
+    return out
+
+
+def load(args):
+    """(case, operating point, power flow) from the arguments; CLIError on bad
+    input (one line)."""
+    from ..grid.case import CaseError, load_case
+    from ..grid.operating import operating_point
+    from ..grid.params import ParamError, set_params
+    from ..grid.powerflow import PowerFlowError
+    from ..grid.psse import PsseError
+
+    if (
+        args.dyr
+        and not str(args.case).endswith(".raw")
+        and not Path(args.case).exists()
+    ):
+        raise CLIError(f"--case {args.case!r}: with --dyr, --case must be a raw file")
+    if not (args.load_factor > 0 and math.isfinite(args.load_factor)):
+        raise CLIError(f"--load-factor {args.load_factor} is not allowed: must be > 0")
+    try:
+        case = load_case(args.case, args.dyr)
+        params = _params(args.param)
+        if params:
+            case = set_params(case, params)
+        op, pf = operating_point(case, args.load_factor, args.load_factor)
+    except (CaseError, PsseError, ParamError, PowerFlowError) as e:
+        raise CLIError(str(e)) from None
+    except FileNotFoundError as e:
+        raise CLIError(f"{e.filename}: no such file") from None
+    except ValueError as e:  # parameter checks of the device models
+        raise CLIError(str(e).splitlines()[0]) from None
+    return case, op, pf
+
+
+def events_from_args(case, args) -> tuple:
+    """The events of one run from the command line (positions resolved, checked)."""
+    from ..grid.events import BranchClose, BranchTrip, BusFault, GenTrip, LineFault
+    from ..grid.operating import check_islanding
+    from ..grid.scenarios import branch_positions
+
+    sys_ = case.system
+    t_on, t_off = args.fault_time, args.clear_time
+    if not (0 <= t_on < t_off < args.t_end):
+        raise CLIError(
+            f"--fault-time {t_on} and --clear-time {t_off} must satisfy 0 <= fault < "
+            f"clear < --t-end {args.t_end}"
+        )
+    if args.fault_reactance < 0:
+        raise CLIError(f"--fault-reactance {args.fault_reactance} must be >= 0")
+    ev = []
+    try:
+        if args.fault_bus is not None:
+            ev.append(
+                BusFault(
+                    bus=sys_.bus_index(args.fault_bus),
+                    t_on=t_on,
+                    t_off=t_off,
+                    x=args.fault_reactance,
+                )
+            )
+        if args.fault_line:
+            k = int(
+                branch_positions(sys_, [_branch_spec(args.fault_line, "--fault-line")])[
+                    0
+                ]
+            )
+            lam = args.fault_location
+            if not 0 < lam < 1:
+                raise CLIError(f"--fault-location {lam} must lie in (0, 1)")
+            ev += [
+                LineFault(
+                    branch=k, frac=lam, t_on=t_on, t_off=t_off, x=args.fault_reactance
+                ),
+                BranchTrip(branch=k, t=t_off),
+            ]
+            if args.reclose:
+                if not t_off < args.reclose_time < args.t_end:
+                    raise CLIError(
+                        f"--reclose-time {args.reclose_time} must lie between "
+                        f"--clear-time and --t-end"
+                    )
+                ev.append(BranchClose(branch=k, t=args.reclose_time))
+        if args.trip_line:
+            k = int(
+                branch_positions(sys_, [_branch_spec(args.trip_line, "--trip-line")])[0]
+            )
+            ev.append(BranchTrip(branch=k, t=t_on))
+        if args.trip_gen:
+            ev.append(GenTrip(gen=_gen_position(case, args.trip_gen), t=t_on))
+        ev.sort(key=lambda e: float(e.switches()[0]))
+        check_islanding(case, ev)
+    except ValueError as e:
+        raise CLIError(str(e)) from None
+    if not ev:
+        raise CLIError(
+            "a --case run needs an event: --fault-bus, --fault-line, --trip-line or "
+            "--trip-gen"
+        )
+    return tuple(ev)
+
+
+def _gen_position(case, spec: str) -> int:
+    from ..grid.loop import gen_names
+
+    name = spec if ":" in spec else f"{spec}:1"
+    names = gen_names(case)
+    if name not in names:
+        raise ValueError(
+            f"--trip-gen {spec}: no generator {name} (have {', '.join(names)})"
+        )
+    return names.index(name)
+
+
+def _describe(case, pf) -> str:
+    from collections import Counter
+
+    kinds = Counter(
+        type(g).__name__ for g in (*case.machines, *case.controllers, *case.svcs)
+    )
+    counts = {}
+    for g in (*case.machines, *case.controllers, *case.svcs):
+        counts[type(g).__name__] = counts.get(type(g).__name__, 0) + len(
+            np.atleast_1d(getattr(g, "gen", getattr(g, "bus", [])))
+        )
+    devices = ", ".join(f"{counts[k]} {k}" for k in kinds)
+    return (
+        f"case {case.name}: {case.system.n_bus} buses, {len(case.system.branches.fr)} "
+        f"branches, {devices}; power flow in {int(pf.iterations)} iterations"
+    )
+
+
+def _event_text(case, ev) -> str:
+    from ..grid.events import BranchClose, BranchTrip, BusFault, GenTrip, LineFault
+    from ..grid.loop import gen_names
+
+    num = np.asarray(case.system.buses.number)
+    br = case.system.branches
+
+    def line(k):
+        return f"{num[br.fr[k]]}-{num[br.to[k]]}"
+
+    out = []
+    for e in ev:
+        if isinstance(e, BusFault):
+            out.append(
+                f"fault at bus {num[int(e.bus)]} {float(e.t_on):g}-{float(e.t_off):g} s"
+            )
+        elif isinstance(e, LineFault):
+            out.append(
+                f"fault on {line(int(e.branch))} at {float(e.frac):g} "
+                f"{float(e.t_on):g}-{float(e.t_off):g} s"
+            )
+        elif isinstance(e, BranchTrip):
+            out.append(f"open {line(int(e.branch))} at {float(e.t):g} s")
+        elif isinstance(e, BranchClose):
+            out.append(f"close {line(int(e.branch))} at {float(e.t):g} s")
+        elif isinstance(e, GenTrip):
+            out.append(
+                f"trip generator {gen_names(case)[int(e.gen)]} at {float(e.t):g} s"
+            )
+    return "; ".join(out)
+
+
+def run_simulate(args) -> int:
+    """`simulate --case`: one run; summary, npz (per-generator and per-bus arrays with
+    their ids), plot of every machine."""
+    import jax.numpy as jnp
+
+    from .._files import check_new_file, write_npz
+    from ..grid.loop import gen_names
+    from ..grid.metrics import grid_metrics
+    from ..grid.simulate import coi_angles, simulate_jit
+
+    out = check_new_file(args.out, args.force, "--out") if args.out else None
+    plot = None
+    if args.plot:
+        from .._figures import check_plot_path
+
+        plot = check_new_file(check_plot_path(args.plot), args.force, "--plot")
+    case, op, pf = load(args)
+    ev = events_from_args(case, args)
+    print(_describe(case, pf), file=sys.stderr)
+    print(f"events: {_event_text(case, ev)}", file=sys.stderr)
+    print("compiling and running ...", file=sys.stderr)
+    t0 = time.perf_counter()
+    tr = simulate_jit(
+        case,
+        op,
+        ev,
+        t_end=args.t_end,
+        dt_save=args.dt_save,
+        rtol=args.rtol,
+        atol=args.atol,
+    )
+    t_first = min(float(e.switches()[0]) for e in ev)
+    m = grid_metrics(case, tr, jnp.asarray(t_first))
+    wall = time.perf_counter() - t0
+    verdict = (
+        "stable"
+        if bool(tr.stable)
+        else ("step budget exhausted" if bool(tr.exhausted) else "UNSTABLE")
+    )
+    names = gen_names(case)
+    print(f"{verdict} ({wall:.1f} s)")
+    if not bool(tr.stable) and not bool(tr.exhausted):
+        print(
+            f"  synchronism lost at t = {float(tr.t_unstable):.3f} s (|angle - COI| > pi)"
+        )
+    print(
+        f"  settling (COI angles within 0.01 rad): {float(m.settling_angle):.2f} s; "
+        f"speeds within 1e-4 pu: {float(m.settling_speed):.2f} s"
+    )
+    print(
+        f"  overshoot {float(m.overshoot):.3f} rad; largest |angle - COI| "
+        f"{float(m.max_spread):.3f} rad; bus voltages {float(m.v_min):.3f}-"
+        f"{float(m.v_max):.3f} pu; peak Efd {float(m.efd_max):.3f} pu"
+    )
+    status = jnp.ones(case.n_gen)
+    rel = np.asarray(coi_angles(case, tr.delta, status))
+    arrays = {
+        "t": np.asarray(tr.ts),
+        "gen": np.array(names),
+        "bus": np.asarray(case.system.buses.number),
+        "delta": np.asarray(tr.delta),
+        "delta_coi": rel,
+        "omega": np.asarray(tr.omega),
+        "efd": np.asarray(tr.efd),
+        "pm": np.asarray(tr.pm),
+        "pe": np.asarray(tr.pe),
+        "vt": np.asarray(tr.vt),
+        "vs": np.asarray(tr.vs),
+        "v_bus": np.asarray(tr.v_bus),
+        "meta": np.array(
+            json.dumps(
+                {
+                    "case": case.name,
+                    "events": _event_text(case, ev),
+                    "stable": bool(tr.stable),
+                    "t_unstable": float(tr.t_unstable),
+                    "exhausted": bool(tr.exhausted),
+                    "rtol": args.rtol,
+                    "atol": args.atol,
+                    "params": _params(args.param),
+                    "load_factor": args.load_factor,
+                    "units": "angles rad (synchronous frame; delta_coi: from the centre "
+                    "of inertia), omega pu speed deviation, efd/vt/v_bus pu, pm/pe pu "
+                    "machine base",
+                }
+            )
+        ),
+    }
+    if out:
+        write_npz(out, arrays)
+        print(f"wrote {out}")
+    if plot:
+        plot_case(arrays, ev, case, plot)
+        print(f"wrote {plot}")
+    return 0
+
+
+def plot_case(a: dict, ev, case, path) -> None:
+    """Every machine's COI angle, speed, field voltage and electrical power, and the
+    bus voltages, with the event times marked."""
+    from .._figures import save_figure, subplots
+
+    fig, axs = subplots(3, 2, figsize=(12, 9), sharex=True)
+    t = a["t"]
+    panels = [
+        ("delta_coi", "angle - COI (rad)"),
+        ("omega", "speed deviation (pu)"),
+        ("efd", "field voltage Efd (pu)"),
+        ("pe", "electrical power (pu machine base)"),
+        ("vt", "terminal voltage (pu)"),
+    ]
+    for ax, (key, label) in zip(axs.flat, panels, strict=False):
+        for i, g in enumerate(a["gen"]):
+            ax.plot(t, a[key][:, i], lw=1, label=f"G {g}")
+        ax.set_ylabel(label)
+        ax.grid(alpha=0.3)
+    ax = axs.flat[5]
+    vb = a["v_bus"]
+    ax.fill_between(
+        t, np.nanmin(vb, axis=1), np.nanmax(vb, axis=1), alpha=0.3, label="range"
+    )
+    ax.plot(t, np.nanmin(vb, axis=1), lw=1, label="lowest bus")
+    ax.set_ylabel("bus voltages (pu)")
+    ax.grid(alpha=0.3)
+    times = sorted({float(s) for e in ev for s in e.switches()})
+    for ax in axs.flat:
+        for s in times:
+            ax.axvline(s, color="k", lw=0.6, ls=":")
+    for ax in axs[-1]:
+        ax.set_xlabel("t (s)")
+    axs.flat[0].legend(fontsize=7, ncol=2)
+    fig.suptitle(f"{case.name}: {_event_text(case, ev)}", fontsize=10)
+    save_figure(fig, path)
+
+
+def run_montecarlo(args) -> int:
+    """`montecarlo --case`: fault scenarios drawn over buses or lines; rows.csv,
+    summary.json in --out."""
+    import jax
+    import jax.numpy as jnp
+
+    from .._files import write_json, write_text
+    from ..grid.metrics import GridMetrics, grid_metrics
+    from ..grid.scenarios import FaultDistribution, sample_events
+    from ..grid.simulate import simulate_batch
+
+    out = Path(args.out) if args.out else None
+    if out and out.exists() and any(out.iterdir()) and not args.force:
+        raise CLIError(f"--out {out}: the folder is not empty (use --force)")
+    case, op, pf = load(args)
+    try:
+        dist = FaultDistribution(
+            kind=args.fault_kind,
+            buses=tuple(_int_list(args.fault_buses)),
+            branches=tuple(
+                _branch_spec(s, "--fault-lines") for s in _str_list(args.fault_lines)
+            ),
+            t_fault=_range(args.fault_times, "--fault-times"),
+            clear_after=_range(args.clear_after, "--clear-after"),
+            reclose=_range(args.reclose_after, "--reclose-after")
+            if args.reclose_after
+            else None,
+        )
+        if dist.t_last() >= args.t_end:
+            raise CLIError(
+                f"--t-end {args.t_end} must exceed the latest event time {dist.t_last():g} s"
+            )
+        n, chunk = int(args.n), int(min(args.chunk, args.n))
+        if n < 1 or chunk < 1:
+            raise CLIError(f"--n {args.n} and --chunk {args.chunk} must be >= 1")
+        sample_events(case.system, dist, 1, args.seed)  # checks buses and lines
+    except ValueError as e:
+        raise CLIError(str(e)) from None
+    print(_describe(case, pf), file=sys.stderr)
+    rows = {k: [] for k in GridMetrics.FIELDS}
+    meta = {"bus": [], "t_fault": [], "t_clear": []}
+    t0 = time.perf_counter()
+    from tqdm import tqdm
+
+    bar = tqdm(total=n, desc="compiling, then scenarios", unit="sc", file=sys.stderr)
+    for start in range(0, n, chunk):
+        k = min(chunk, n - start)
+        ev = sample_events(case.system, dist, chunk, args.seed + start)
+        tr = simulate_batch(
+            case,
+            op,
+            ev,
+            t_end=args.t_end,
+            dt_save=args.dt_save,
+            rtol=args.rtol,
+            atol=args.atol,
+        )
+        m = jax.vmap(
+            lambda t, e: grid_metrics(case, t, e.switches()[0]), in_axes=(0, 0)
+        )(tr, ev[0])
+        for f in GridMetrics.FIELDS:
+            rows[f] += np.asarray(getattr(m, f))[:k].tolist()
+        where = ev[0].bus if hasattr(ev[0], "bus") else ev[0].branch
+        meta["bus"] += np.asarray(where)[:k].tolist()
+        meta["t_fault"] += np.asarray(ev[0].t_on)[:k].tolist()
+        meta["t_clear"] += np.asarray(ev[0].t_off)[:k].tolist()
+        bar.update(k)
+    bar.close()
+    wall = time.perf_counter() - t0
+    st = np.asarray(rows["stable"], dtype=bool)
+    settle = np.asarray(rows["settling_angle"], dtype=float)
+    fin = settle[st & np.isfinite(settle)]
+    summary = {
+        "case": case.name,
+        "n": n,
+        "seed": args.seed,
+        "stable_fraction": float(st.mean()),
+        "settling_mean": float(fin.mean()) if fin.size else None,
+        "settling_p95": float(np.percentile(fin, 95)) if fin.size else None,
+        "exhausted": int(np.sum(rows["exhausted"])),
+        "seconds": wall,
+        "distribution": {k: v for k, v in dist.__dict__.items()},
+    }
+    print(
+        f"{n} scenarios in {wall:.1f} s: stable {summary['stable_fraction']:.3f}, "
+        f"settling mean {summary['settling_mean']} s"
+    )
+    if out:
+        out.mkdir(parents=True, exist_ok=True)
+        where_name = "bus_position" if dist.kind == "bus" else "branch_position"
+        cols = [where_name, "t_fault", "t_clear", *GridMetrics.FIELDS]
+        lines = [",".join(cols)]
+        for i in range(n):
+            vals = [meta["bus"][i], meta["t_fault"][i], meta["t_clear"][i]]
+            vals += [rows[f][i] for f in GridMetrics.FIELDS]
+            lines.append(",".join(str(v) for v in vals))
+        write_text(out / "rows.csv", "\n".join(lines) + "\n")
+        write_json(out / "summary.json", summary)
+        print(f"wrote {out}/rows.csv, {out}/summary.json")
+    _ = jnp
+    return 0
+
+
+def _int_list(text):
+    if not text or text == "all":
+        return []
+    try:
+        return [int(s) for s in str(text).split(",") if s.strip()]
+    except ValueError:
+        raise CLIError(
+            f"{text!r} is not a comma-separated list of bus numbers"
+        ) from None
+
+
+def _str_list(text):
+    return (
+        []
+        if not text or text == "all"
+        else [s for s in str(text).split(",") if s.strip()]
+    )
+
+
+def _range(text, flag):
+    try:
+        lo, hi = (float(s) for s in str(text).split(":"))
+    except ValueError:
+        raise CLIError(f"{flag} {text!r} is not allowed: expected LO:HI") from None
+    return (lo, hi)
+
+
+def add_montecarlo_options(p) -> None:
+    g = p.add_argument_group("multi-machine Monte Carlo (with --case)")
+    g.add_argument("--fault-kind", choices=("bus", "line"), default="bus")
+    g.add_argument(
+        "--fault-buses", default="all", help="bus numbers, e.g. 7,8,9 (default all)"
+    )
+    g.add_argument(
+        "--fault-lines", default="all", help="lines A-B[:CKT],... (default all)"
+    )
+    g.add_argument(
+        "--fault-times", default="0.5:1.0", help="fault time range LO:HI (s)"
+    )
+    g.add_argument("--clear-after", default="0.05:0.1", help="clearing time range (s)")
+    g.add_argument("--reclose-after", default=None, help="reclosure delay range (s)")
+    g.add_argument("--dt-save", type=float, default=0.01, help="sampling interval (s)")
+
+
+def run_cct(args) -> int:
+    """`cct --case`: the critical clearing time of a bolted fault at each bus of
+    --fault-buses (cleared without tripping), by bisection to --tol, all buses in
+    one batch per bisection step."""
+    from .._files import check_new_file, write_json
+    from ..grid.cct import critical_clearing_times_grid
+
+    out = check_new_file(args.out, args.force, "--out") if args.out else None
+    case, op, pf = load(args)
+    try:
+        buses = _int_list(args.fault_buses) or [
+            int(b) for b in np.asarray(case.system.buses.number)
+        ]
+        res = critical_clearing_times_grid(
+            case,
+            op,
+            buses,
+            t_fault=args.fault_time,
+            t_max=args.cct_max,
+            tol=args.tol,
+            t_end=args.t_end,
+        )
+    except ValueError as e:
+        raise CLIError(str(e)) from None
+    print(_describe(case, pf), file=sys.stderr)
+    print(f"{'bus':>6}  CCT (s)")
+    for b, c in res["cct"].items():
+        text = (
+            "none (unstable at the shortest)"
+            if c == 0
+            else (f"> {args.cct_max:g}" if c is None else f"{c:.4f}")
+        )
+        print(f"{b:>6}  {text}")
+    if out:
+        write_json(out, {"case": case.name, "params": _params(args.param), **res})
+        print(f"wrote {out}")
+    return 0
