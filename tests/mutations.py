@@ -80,10 +80,10 @@ MUTANTS = [
         "--resume ignores the checkpoint and trains from step 0 (deterministic run: "
         "same gains and losses)",
     ),
-    # -- control law (controller.py) ------------------------------------------------
+    # -- control law (controllers/synergetic/law.py) ------------------------------
     Mutant(
         "uf-law-sign",
-        "src/smibjax/controller.py",
+        "src/smibjax/controllers/synergetic/law.py",
         "- evolution(phi1, gains.T1, a, layer)",
         "+ evolution(phi1, gains.T1, a, layer)",
         (SIM_REF,),
@@ -91,7 +91,7 @@ MUTANTS = [
     ),
     Mutant(
         "ur-law-sign",
-        "src/smibjax/controller.py",
+        "src/smibjax/controllers/synergetic/law.py",
         "- evolution(phi2, gains.T2, a, layer)",
         "+ evolution(phi2, gains.T2, a, layer)",
         (SIM_REF,),
@@ -99,7 +99,7 @@ MUTANTS = [
     ),
     Mutant(
         "uf-drift-sign",
-        "src/smibjax/controller.py",
+        "src/smibjax/controllers/synergetic/law.py",
         "b1 * f[0] + (c1 * x[1] + xdot2_hat)",
         "b1 * f[0] - (c1 * x[1] + xdot2_hat)",
         (SIM_REF,),
@@ -107,7 +107,7 @@ MUTANTS = [
     ),
     Mutant(
         "th1-law-sign",
-        "src/smibjax/controller.py",
+        "src/smibjax/controllers/synergetic/law.py",
         "gains.gamma1 * (o1 + out.x[1] * s)",
         "gains.gamma1 * (o1 - out.x[1] * s)",
         (SIM_REF,),
@@ -115,7 +115,7 @@ MUTANTS = [
     ),
     Mutant(
         "th2-law-sign",
-        "src/smibjax/controller.py",
+        "src/smibjax/controllers/synergetic/law.py",
         "gains.gamma2 * (o2 + s)",
         "gains.gamma2 * (o2 - s)",
         (SIM_REF,),
@@ -123,7 +123,7 @@ MUTANTS = [
     ),
     Mutant(
         "k1-term-sign",
-        "src/smibjax/controller.py",
+        "src/smibjax/controllers/synergetic/law.py",
         "spow(-plant.D - th_hat[0], a)",
         "spow(th_hat[0] + plant.D, a)",
         (SIM_REF,),
@@ -131,7 +131,7 @@ MUTANTS = [
     ),
     Mutant(
         "k2-term-sign",
-        "src/smibjax/controller.py",
+        "src/smibjax/controllers/synergetic/law.py",
         "spow(plant.Pm - th_hat[1], a)",
         "spow(th_hat[1] - plant.Pm, a)",
         (SIM_REF,),
@@ -264,7 +264,7 @@ MUTANTS = [
     # -- the batch engine (batch.py) and Monte Carlo run folders (cli/runs.py) ---------
     Mutant(
         "engine-structure-ignored",
-        "src/smibjax/controllers/synergetic.py",
+        "src/smibjax/controllers/synergetic/controller.py",
         "        return (self.oracle, box, float(self.phi_layer))",
         "        return ()",
         ("tests/test_batch.py::test_structure_is_part_of_the_program",),

@@ -9,7 +9,6 @@ import pytest
 
 import smibjax as sj
 from smibjax.closed_loop import ClosedLoop, closed_loop_vector_field, initial_state
-from smibjax.controller import evolution
 from smibjax.controllers import (
     AvrPss,
     EstimateBox,
@@ -18,6 +17,7 @@ from smibjax.controllers import (
     make_controller,
     project,
 )
+from smibjax.controllers.synergetic import evolution
 
 REALISTIC = sj.Plant.preset("realistic")
 LATE = sj.Fault(t_fault=5.0, t_clear=6.0, t_reclose=7.0)

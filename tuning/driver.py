@@ -24,12 +24,7 @@ from smibjax.cli.files import (
     write_gains_file,
     write_text,
 )
-from smibjax.controllers import (
-    CONTROLLERS,
-    EstimateBox,
-    Synergetic,
-    make_controller,
-)
+from smibjax.controllers import CONTROLLERS, EstimateBox, make_controller
 from smibjax.gainsfile import GainsFile
 from smibjax.losses import TERM_NAMES, LossWeights
 from smibjax.scenarios import ScenarioDistribution
@@ -121,14 +116,13 @@ def build(cfg) -> Problem:
         {k: v for k, v in cfg["gains"]["bounds"].items() if k in names},
         float(cfg["gains"]["beta_abs_min"]),
         kinds=controller_cls.parameter_kinds(),
-        make=sj.Gains if controller_cls is Synergetic else controller_cls,
+        make=controller_cls.parameter_type(),
     )
     lw = cfg["loss"]
     weights = LossWeights(
         **{k: float(lw[k]) for k in (*TERM_NAMES, "delta_band", "Vt_band")}
     )
-    synergetic = controller_cls is Synergetic
-    box = projection_box(cfg) if synergetic else None
+    box = projection_box(cfg) if "projection" in controller_cls.option_names else None
     if box is not None:
         th0 = (sj.InitialEstimates().th1, sj.InitialEstimates().th2)
         if not box.contains(th0):
@@ -436,13 +430,10 @@ def _gains_file(cfg: dict, gains, names=None) -> GainsFile:
     controller = cfg["controller"]
     values = gains_to_dict(gains, names or parameter_names(cfg))
     options = {}
-    if CONTROLLERS[controller] is Synergetic and "options" in cfg:
-        # alpha = 1 is the ASC law whatever the start (a logit can round up to 1.0)
-        controller = "asc" if values["alpha"] == 1.0 else controller
-        options = {
-            "projection": cfg["options"]["projection"],
-            "phi_layer": float(cfg["options"]["phi_layer"]),
-        }
+    if "options" in cfg:
+        controller, options = CONTROLLERS[controller].options_for_file(
+            controller, values, cfg["options"]
+        )
     return GainsFile(
         controller=controller,
         adaptation=cfg["adaptation"],

@@ -11,6 +11,7 @@ import numpy as np
 import smibjax as sj
 from smibjax.cli.files import write_text
 from smibjax.cli.plotting import save_figure, subplots
+from smibjax.controllers import CONTROLLERS
 
 from .params import gains_to_dict
 from .train import with_damping
@@ -253,7 +254,8 @@ def write_report(
         return _fmt(v[k]) if not k2 else f"{_fmt(v[k])} .. {_fmt(v[k2])}"
 
     n_val = int(cfg["validation"]["n"])
-    synergetic = isinstance(g0, sj.Gains)  # the paper's law (adaptation, options)
+    # the paper's law (adaptation, options)
+    synergetic = CONTROLLERS[cfg["controller"]].has_adaptation
     md = [
         "# Tuning report",
         "",

@@ -20,7 +20,7 @@ import optax
 
 import smibjax as sj
 from smibjax.batch import Engine, Scenarios
-from smibjax.controllers import AbstractController, EstimateBox, Synergetic
+from smibjax.controllers import AbstractController, EstimateBox, as_controller
 from smibjax.losses import LossWeights, aggregate, loss_terms, scenario_loss
 from smibjax.metrics import physics_summary
 from smibjax.parallel import device_map, shard_batch
@@ -60,14 +60,10 @@ class Setup:
 
     def controller_of(self, params) -> AbstractController:
         """The controller with parameter set `params` (`space.to_gains(raw)`)."""
-        if isinstance(params, sj.Gains):
-            return Synergetic(
-                params,
-                oracle=self.adaptation == "oracle",
-                projection=self.projection,
-                phi_layer=self.phi_layer,
-            )
-        return params
+        if isinstance(params, AbstractController):
+            return params
+        options = {"projection": self.projection, "phi_layer": self.phi_layer}
+        return as_controller(params, self.adaptation, options)
 
 
 def scaled_limits(plant: sj.Plant, scale) -> sj.Plant:

@@ -33,11 +33,10 @@ import numpy as np
 from jaxtyping import Array, Bool, Float, Int
 
 from ._validate import ParameterError, is_concrete, require_count, require_positive
-from .closed_loop import as_controller
-from .controllers import AbstractController
+from .controllers import AbstractController, Gains, as_controller
 from .metrics import DEFAULT_BANDS, Metrics, metrics
 from .parallel import device_map
-from .parameters import Fault, Gains, InitialEstimates, OperatingPoint, Plant
+from .parameters import Fault, InitialEstimates, OperatingPoint, Plant
 from .simulate import simulate
 
 __all__ = ["Engine", "Outcome", "Scenarios"]
@@ -146,7 +145,7 @@ class Engine:
                 f"controller = {controller!r} is not allowed: must be a controller "
                 "(smibjax.controllers) or Gains"
             )
-        template = as_controller(controller, True)
+        template = as_controller(controller)
         values = template.tunable() if lanes is None else lanes
         alpha_one = _all_alpha_one(template, values)
         key = (

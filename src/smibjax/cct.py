@@ -47,8 +47,7 @@ import numpy as np
 
 from ._validate import require_positive, require_samples
 from .batch import Engine, Scenarios
-from .closed_loop import as_controller
-from .controllers import Synergetic
+from .controllers import as_controller
 from .parameters import (
     Fault,
     InitialEstimates,
@@ -84,10 +83,7 @@ def _lanes(gain_sets: dict, names: list, adaptation: str):
     with `adaptation`."""
     ctrls = []
     for n in names:
-        c = as_controller(gain_sets[n])
-        if isinstance(c, Synergetic):
-            c = Synergetic(c.gains, adaptation == "oracle", c.projection, c.phi_layer)
-        ctrls.append(c)
+        ctrls.append(as_controller(gain_sets[n]).with_adaptation(adaptation))
     if len({lane_kind(c) for c in ctrls}) > 1:
         raise ParameterError(
             "the gain sets of one CCT call must share one controller and its options "

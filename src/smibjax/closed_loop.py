@@ -12,7 +12,7 @@ import equinox as eqx
 import jax.numpy as jnp
 from jaxtyping import Array, Bool, Float
 
-from .controllers import AbstractController, Synergetic
+from .controllers import AbstractController, Gains, as_controller
 from .network import (
     Stage,
     by_stage,
@@ -21,7 +21,7 @@ from .network import (
     prefault_stage,
     stage_at,
 )
-from .parameters import Fault, Gains, InitialEstimates, OperatingPoint, Plant
+from .parameters import Fault, InitialEstimates, OperatingPoint, Plant
 from .plant import (
     apply_limits,
     equilibrium_state,
@@ -36,7 +36,6 @@ __all__ = [
     "healthy",
     "N_STATE",
     "N_DYNAMIC",
-    "as_controller",
 ]
 
 N_STATE = 8  # delta, domega, E, B, th1, th2, J_f, J_r (the paper's controller)
@@ -82,7 +81,7 @@ class ClosedLoop(eqx.Module):
     ):
         """`gains`: a controller, or the paper's `Gains` (then the `Synergetic`
         controller with the `oracle` or realizable update law)."""
-        self.controller = as_controller(gains, oracle)
+        self.controller = as_controller(gains, "oracle" if oracle else "realizable")
         self.fault, self.plant, self.op = fault, plant, op
         self.input_smoothing = input_smoothing
         self.fault_network = fault_stage(plant, fault.lam, fault.Xf)
@@ -108,16 +107,6 @@ class ClosedLoop(eqx.Module):
         return 4 + self.controller.n_internal
 
 
-def as_controller(
-    gains: Gains | AbstractController, oracle: bool = True
-) -> AbstractController:
-    """`gains` itself if it is a controller, else the paper's `Synergetic` controller
-    with these gains (`oracle`: the paper's update law; False: realizable)."""
-    if isinstance(gains, AbstractController):
-        return gains
-    return Synergetic(gains, oracle=oracle)
-
-
 def _b_max(stage: Stage, plant: Plant):
     """The SVC susceptance B (pu) at which the transfer reactance of `stage`,
     Xs - X1 X2 (B + Bf), falls to X_MIN."""
@@ -135,16 +124,13 @@ def initial_state(
     """y(0): the operating point, the controller's initial internal state (for the
     paper's controller, the default: the initial estimates) and zero effort.
     `check=False` skips the controller's checks of `init` (for a placeholder state)."""
-    controller = Synergetic(Gains()) if controller is None else controller
+    controller = as_controller(Gains()) if controller is None else controller
     z0 = equilibrium_state(op, plant)
     zero = jnp.zeros_like(z0[0])
-    if check or not isinstance(controller, Synergetic):
+    if check:
         s0 = controller.initial_internal(z0, plant, op, init)
-    else:  # a placeholder inside any projection box: the paper's or its centre
-        box = controller.projection
-        s0 = jnp.stack([init.th1 + zero, init.th2 + zero])
-        if box is not None:
-            s0 = 0.5 * (box.lo + box.hi) + zero
+    else:  # a placeholder (inside any projection box of the paper's law)
+        s0 = controller.placeholder_internal(z0, plant, op, init)
     return jnp.concatenate([z0, s0, jnp.stack([zero, zero])])
 
 

@@ -21,9 +21,9 @@ import numpy as np
 
 from ._validate import require_count, require_positive, require_samples
 from .batch import Engine, Outcome, Scenarios
-from .controllers import CONTROLLERS, Synergetic, make_controller
+from .controllers import CONTROLLERS, as_controller, parameter_set
 from .metrics import PHYSICS, physics_summary
-from .parameters import Gains, InitialEstimates, OperatingPoint, ParameterError, Plant
+from .parameters import InitialEstimates, OperatingPoint, ParameterError, Plant
 from .scenarios import ScenarioDistribution, sample_scenarios
 
 __all__ = [
@@ -151,15 +151,14 @@ class MonteCarloSpec:
     def distribution(self) -> ScenarioDistribution:
         return ScenarioDistribution.from_dict(self.dist)
 
-    def synergetic(self) -> bool:
-        """True for the paper's law (AFTSC / ASC)."""
-        return self.controller == "" or CONTROLLERS[self.controller] is Synergetic
+    def controller_name(self) -> str:
+        """The registry name of the controller ("" is the paper's AFTSC)."""
+        return self.controller or "aftsc"
 
     def controller_of(self, params):
-        """The controller with parameter set `params` (`parameters()[0]`)."""
-        if not self.synergetic():
-            return params
-        return Synergetic.from_options(params, self.adaptation, self.options)
+        """The controller with parameter set `params` (`parameters()[0]`), under
+        the spec's adaptation mode and options."""
+        return as_controller(params, self.adaptation, self.options)
 
     def parameters(self) -> tuple:
         """The parameter sets (values may be given as numbers or 'inf' strings): the
@@ -174,13 +173,9 @@ class MonteCarloSpec:
                 f"controller = {self.controller!r} is not allowed: must be one of "
                 f"{', '.join(CONTROLLERS)}"
             )
-        if self.synergetic():
-            from .gainsfile import synergetic_options
-
-            synergetic_options(self.controller or "aftsc", dict(self.options))
-            params = Gains(**f(self.gains))
-        else:
-            params = make_controller(self.controller, f(self.gains))
+        name = self.controller_name()
+        CONTROLLERS[name].check_options(name, dict(self.options))
+        params = parameter_set(name, f(self.gains))
         return (
             params,
             Plant(**f(self.plant)),

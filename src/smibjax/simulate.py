@@ -48,16 +48,14 @@ from ._validate import (
 )
 from .closed_loop import (
     ClosedLoop,
-    as_controller,
     closed_loop_vector_field,
     healthy,
     initial_state,
 )
-from .controllers import AbstractController, Synergetic
+from .controllers import AbstractController, Gains, as_controller
 from .network import prefault_stage, stage_at
 from .parameters import (
     Fault,
-    Gains,
     InitialEstimates,
     OperatingPoint,
     ParameterError,
@@ -189,17 +187,8 @@ def _resolve_controller(gains, adaptation) -> AbstractController:
             "'realizable'"
         )
     gains = Gains() if gains is None else gains
-    controller = as_controller(gains, adaptation != "realizable")
-    if isinstance(controller, Synergetic):
-        if adaptation is not None:
-            controller = Synergetic(
-                controller.gains,
-                adaptation == "oracle",
-                controller.projection,
-                controller.phi_layer,
-            )
-        controller = controller.with_static_alpha()
-    return controller
+    controller = as_controller(gains).with_adaptation(adaptation)
+    return controller.specialized()
 
 
 @eqx.filter_jit

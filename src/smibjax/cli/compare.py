@@ -17,8 +17,9 @@ from pathlib import Path
 
 import numpy as np
 
+from ..controllers.synergetic import GAIN_NAMES, Gains
 from ..gainsfile import Context, resolve
-from ..parameters import GAIN_NAMES, Gains, ParameterError
+from ..parameters import ParameterError
 from .files import read_gains_file, write_json, write_text
 
 __all__ = [
@@ -47,11 +48,9 @@ BUILTIN_SETS = {
 def _parameters(controller: str, values: dict):
     """The parameter set of `controller`: the paper's `Gains` for aftsc/asc (the
     controller's alpha), the controller itself otherwise."""
-    from ..controllers import CONTROLLERS, Synergetic, make_controller
+    from ..controllers import parameter_set
 
-    if CONTROLLERS[controller] is Synergetic:
-        return Gains.paper(controller, **values)
-    return make_controller(controller, values)
+    return parameter_set(controller, values)
 
 
 def resolve_gain_set_context(

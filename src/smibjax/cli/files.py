@@ -8,8 +8,9 @@ import tempfile
 from collections.abc import Callable
 from pathlib import Path
 
+from ..controllers.synergetic import GAIN_NAMES
 from ..gainsfile import GainsFile, check_complete, is_schema_table, legacy, validate
-from ..parameters import GAIN_NAMES, ParameterError
+from ..parameters import ParameterError
 
 try:  # Python >= 3.11
     import tomllib

@@ -16,13 +16,11 @@ import re
 import sys
 from pathlib import Path
 
-from ..controllers import CONTROLLERS, Synergetic, make_controller
-from ..gainsfile import Context, resolve, synergetic_options
+from ..controllers import CONTROLLERS, as_controller, parameter_set
+from ..gainsfile import Context, resolve
 from ..parameters import (
-    GAIN_NAMES,
     PLANT_NAMES,
     PRESETS,
-    Gains,
     InitialEstimates,
     OperatingPoint,
     ParameterError,
@@ -177,17 +175,18 @@ def add_phi_layer(p: Parser) -> None:
 
 def with_phi_layer(ctx: Context, layer: float | None) -> Context:
     """`ctx` with its `phi_layer` option replaced by `layer` (None: unchanged),
-    validated by the paper's law's options (`synergetic_options`); a controller
-    without the option (none, avr-pss) refuses it with one line."""
+    validated by the controller's `check_options`; a controller without the
+    option (none, avr-pss) refuses it with one line."""
     if layer is None:
         return ctx
-    if CONTROLLERS[ctx.controller] is not Synergetic:
+    cls = CONTROLLERS[ctx.controller]
+    if "phi_layer" not in cls.option_names:
         raise ParameterError(
             f"phi_layer = {layer!r} is not allowed for controller "
             f"{ctx.controller!r}: only the paper's law (aftsc, asc) has a boundary "
             "layer"
         )
-    options = synergetic_options(ctx.controller, {**ctx.options, "phi_layer": layer})
+    options = cls.check_options(ctx.controller, {**ctx.options, "phi_layer": layer})
     return dataclasses.replace(ctx, options=options)
 
 
@@ -261,10 +260,7 @@ def build_parameters(
     if gain_values is None:
         gain_values = read_gains(gains_file, complete=complete) if gains_file else {}
     groups = {"gains": {}, "plant": {}, "op": {}, "init": {}}
-    synergetic = CONTROLLERS[controller] is Synergetic
-    names = (
-        GAIN_NAMES if synergetic else tuple(CONTROLLERS[controller].parameter_kinds())
-    )
+    names = tuple(CONTROLLERS[controller].parameter_kinds())
     owners = {
         **{n: "gains" for n in names},
         **{n: "plant" for n in PLANT_NAMES},
@@ -280,10 +276,7 @@ def build_parameters(
             )
         groups[owners[name]][name] = value
     values = {**gain_values, **groups["gains"]}
-    if synergetic:
-        gains = Gains.paper(controller, **values)
-    else:
-        gains = make_controller(controller, values)
+    gains = parameter_set(controller, values)
     plant = Plant.preset(preset, **{**(plant_values or {}), **groups["plant"]})
     return (
         gains,
@@ -297,9 +290,7 @@ def controller_of(params, adaptation: str, context: Context | None = None):
     """The controller that runs: `params` itself (none, avr-pss) or the paper's law
     with `params` as gains, the adaptation and the options (projection, phi_layer)
     of the context."""
-    if not isinstance(params, Gains):
-        return params
-    return Synergetic.from_options(
+    return as_controller(
         params, adaptation, context.options if context is not None else {}
     )
 
@@ -362,9 +353,7 @@ def build_from_args(args, complete=False, controller=None):
 def parameter_values(params) -> dict[str, float]:
     """A parameter set's tunable values (the paper's nine gains plus c1, c2, or a
     controller's own), as plain floats."""
-    if isinstance(params, Gains):
-        return {k: float(getattr(params, k)) for k in GAIN_NAMES}
-    return params.parameters()
+    return as_controller(params).parameters()
 
 
 def read_dist(path) -> ScenarioDistribution:

@@ -8,8 +8,9 @@ from pathlib import Path
 
 import numpy as np
 
+from ..controllers.synergetic import Gains
 from ..metrics import metrics
-from ..parameters import Fault, Gains, Plant
+from ..parameters import Fault, Plant
 from ..simulate import simulate
 from .files import atomic_write, write_json, write_npz, write_text
 from .plotting import plot_figure, trajectory_arrays

@@ -1,12 +1,13 @@
 """`aftsc` / `asc`: the paper's adaptive synergetic law as a controller.
 
-The law itself (eqs. 21-22, 36-37, in the paper's coordinates) is in
-`smibjax.controller`; this module makes it a controller of the closed loop, with its
-two options (both off by default, MODEL.md section 2):
+The law itself (eqs. 21-22, 36-37, in the paper's coordinates) is in `law`; this
+module makes it a controller of the closed loop, with its options (all off by
+default, docs/model.md section 2):
 
 - weighted macro-variables phi_i = c_i e1 + e2 + beta_i e_(i+2): `Gains.c1`, `c2`;
 - a smooth projection of the estimates onto a known box [th_min, th_max]
-  (`EstimateBox`), the standard anti-windup of adaptive control.
+  (`EstimateBox`), the standard anti-windup of adaptive control;
+- the evolution law's boundary layer `phi_layer`.
 """
 
 from __future__ import annotations
@@ -16,83 +17,15 @@ import math
 import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
-from jaxtyping import Array, Float
 
-from .._validate import ParameterError, is_concrete
-from ..controller import adaptation_rate, control_law, static_alpha
-from ..parameters import GAIN_NAMES, Gains, _f
-from .base import AbstractController, ControllerOutput
+from ..._validate import ParameterError, is_concrete
+from ..base import AbstractController, ControllerOutput
+from .gains import GAIN_NAMES, Gains
+from .law import adaptation_rate, control_law, static_alpha
+from .options import OPTION_NAMES, EstimateBox, project, synergetic_options
+from .transforms import GAIN_KINDS
 
-__all__ = ["EstimateBox", "Synergetic", "project", "GAIN_KINDS"]
-
-# The tuner's transforms of the synergetic gains (tuning/params.py).
-GAIN_KINDS = {
-    "beta1": "inverse",
-    "beta2": "inverse",
-    "T1": "log",
-    "T2": "log",
-    "alpha": "alpha",
-    "gamma1": "log",
-    "gamma2": "log",
-    "k1": "softplus",
-    "k2": "softplus",
-    "c1": "log",
-    "c2": "log",
-}
-assert tuple(GAIN_KINDS) == GAIN_NAMES
-
-
-class EstimateBox(eqx.Module):
-    """The known box of theta = (-D, Pm): th1 in [th1_min, th1_max] and th2 in
-    [th2_min, th2_max] (pu). `layer` (a fraction of each half-width) is the boundary
-    layer in which the projection phases in."""
-
-    lo: Float[Array, 2] = eqx.field(converter=_f)
-    hi: Float[Array, 2] = eqx.field(converter=_f)
-    layer: float = eqx.field(static=True, default=0.1)
-
-    def __check_init__(self):
-        if not is_concrete(self.lo, self.hi):
-            return
-        lo, hi = np.asarray(self.lo), np.asarray(self.hi)
-        if lo.shape[-1:] != (2,) or hi.shape[-1:] != (2,):
-            raise ParameterError("projection box must give [lo, hi] for th1 and th2")
-        if not (np.all(np.isfinite(lo)) and np.all(np.isfinite(hi))):
-            raise ParameterError(
-                f"projection box lo = {lo.tolist()}, hi = {hi.tolist()} is not "
-                "allowed: must be finite"
-            )
-        if not np.all(lo < hi):
-            raise ParameterError(
-                f"projection box lo = {lo.tolist()}, hi = {hi.tolist()} is not "
-                "allowed: empty (each lo must be < hi)"
-            )
-        if not 0 < self.layer <= 1:
-            raise ParameterError(
-                f"projection layer = {self.layer:g} is not allowed: must be in (0, 1]"
-            )
-
-    def contains(self, th) -> bool:
-        """True when the concrete estimates `th` lie in the box."""
-        th = np.asarray(th)
-        return bool(np.all((th >= np.asarray(self.lo)) & (th <= np.asarray(self.hi))))
-
-
-def project(
-    th: Float[Array, 2], rate: Float[Array, 2], box: EstimateBox
-) -> Float[Array, 2]:
-    """Smooth projection of the estimate rate onto `box` (per component):
-    rate (1 - w) where the rate points outwards, rate elsewhere, with w rising from 0
-    to 1 (smoothstep, C1) across the boundary layer just inside the box. At the
-    boundary w = 1: no estimate leaves the box, and inside the layer-free interior
-    the law is unchanged. Continuous and Lipschitz in (th, rate), so the closed loop
-    stays differentiable."""
-    c = 0.5 * (box.lo + box.hi)
-    r = 0.5 * (box.hi - box.lo)
-    rho = jnp.clip((jnp.abs(th - c) - (1 - box.layer) * r) / (box.layer * r), 0.0, 1.0)
-    w = rho * rho * (3 - 2 * rho)
-    outward = rate * (th - c) > 0
-    return jnp.where(outward, rate * (1 - w), rate)
+__all__ = ["Synergetic"]
 
 
 class Synergetic(AbstractController):
@@ -101,7 +34,7 @@ class Synergetic(AbstractController):
     `oracle`: the paper's update law, whose k-terms read the true theta (True), or the
     realizable certainty-equivalence law without them (False). `projection`: an
     `EstimateBox` (None: no projection, the paper). `phi_layer` (units of phi): the
-    boundary-layer width of the evolution law (`smibjax.controller.evolution`; 0, the
+    boundary-layer width of the evolution law (`law.evolution`; 0, the
     default: the exact finite-time law).
     """
 
@@ -120,6 +53,8 @@ class Synergetic(AbstractController):
 
     n_internal = 2
     has_estimates = True
+    has_adaptation = True
+    option_names = OPTION_NAMES
     angle_range = (0.0, math.pi)  # cot x1 and 1/g31 are singular at 0 and pi
     diagnostic_names = ("phi1", "phi2")
 
@@ -133,20 +68,84 @@ class Synergetic(AbstractController):
     ) -> Synergetic:
         """The controller with `gains`, the `adaptation` mode ("oracle" or
         "realizable") and the options of a gains file or Monte Carlo spec:
-        `projection` ([[th1_min, th1_max], [th2_min, th2_max]]; [] or absent: off) and
-        `phi_layer` (absent: 0, the exact law)."""
+        `projection` ([[th1_min, th1_max], [th2_min, th2_max]] or an `EstimateBox`;
+        [], None or absent: off) and `phi_layer` (absent: 0, the exact law)."""
         options = options or {}
         box = options.get("projection") or []
+        if not isinstance(box, EstimateBox):
+            box = EstimateBox(*zip(*box, strict=True)) if box else None
         return cls(
             gains,
             oracle=adaptation != "realizable",
-            projection=EstimateBox(*zip(*box, strict=True)) if box else None,
+            projection=box,
             phi_layer=float(options.get("phi_layer", 0.0)),
+        )
+
+    @classmethod
+    def parameter_set(cls, name: str, values: dict[str, float]) -> Gains:
+        """The paper's gains of `name` (aftsc: alpha = 5/7, asc: 1) with `values`."""
+        return Gains.paper(name, **values)
+
+    @classmethod
+    def parameter_type(cls) -> type:
+        return Gains
+
+    @classmethod
+    def required_parameters(cls) -> tuple[str, ...]:
+        """Every gain but c1, c2 (1: the paper's form)."""
+        return tuple(g for g in GAIN_NAMES if g not in ("c1", "c2"))
+
+    @classmethod
+    def check_options(cls, name: str, options: dict) -> dict:
+        return synergetic_options(name, options)
+
+    @classmethod
+    def options_for_file(cls, name: str, values: dict, options: dict) -> tuple:
+        """asc where the tuned alpha is 1 (a logit can round up to 1.0, the ASC law
+        whatever the start), and the projection box and boundary layer."""
+        name = "asc" if values["alpha"] == 1.0 else name
+        return name, {
+            "projection": options["projection"],
+            "phi_layer": float(options["phi_layer"]),
+        }
+
+    @classmethod
+    def from_parameters(
+        cls, params, adaptation: str = "oracle", options: dict | None = None
+    ) -> Synergetic:
+        return cls.from_options(params, adaptation, options)
+
+    def with_adaptation(self, adaptation: str | None) -> Synergetic:
+        if adaptation is None:
+            return self
+        return Synergetic(
+            self.gains, adaptation == "oracle", self.projection, self.phi_layer
+        )
+
+    def specialized(self) -> Synergetic:
+        """alpha compiled as the constant 1 where it is concretely 1 (ASC)."""
+        return self.with_static_alpha()
+
+    def placeholder_internal(self, z0, plant, op, init):
+        """The initial estimates, or the projection box's centre: inside any box."""
+        zero = jnp.zeros_like(z0[0])
+        box = self.projection
+        if box is not None:
+            return 0.5 * (box.lo + box.hi) + zero
+        return jnp.stack([init.th1 + zero, init.th2 + zero])
+
+    def label(self) -> str:
+        """'AFTSC: beta = (-1, -1), alpha = 0.714' (ASC where alpha = 1)."""
+        g = self.gains
+        a = float(g.alpha)
+        return (
+            f"{'AFTSC' if a < 1 else 'ASC'}: beta = ({float(g.beta1):g}, "
+            f"{float(g.beta2):g}), alpha = {a:.3g}"
         )
 
     def with_static_alpha(self, alpha_one: bool | None = None) -> Synergetic:
         """The same controller with alpha compiled as the constant 1 where it is 1
-        (`smibjax.controller.static_alpha`)."""
+        (`law.static_alpha`)."""
         gains = static_alpha(self.gains, alpha_one)
         return Synergetic(gains, self.oracle, self.projection, self.phi_layer)
 
