@@ -5,7 +5,7 @@ import os
 import sys
 from pathlib import Path
 
-from smibjax.cli.process import configure_process
+from smibjax import configure
 
 ROOT = Path(__file__).resolve().parents[1]
 CACHE = str(ROOT / ".jax_cache")
@@ -13,7 +13,7 @@ os.environ.setdefault("JAX_PLATFORMS", "cpu")
 # The suite is an entry point like the CLI: float64, equinox's checks as NaNs (so the
 # persistent cache in .jax_cache/ stores the simulator), one host device. Both are set
 # in the environment, not only in this process's JAX config: a test that calls a
-# command's `main()` in process runs `configure_process()` again, which reads them
+# command's `main()` in process runs `smibjax.configure()` again, which reads them
 # (without them it would move this worker's cache to ~/.cache/smibjax/jax and ask
 # the environment of later processes for one device per core).
 os.environ["SMIBJAX_CACHE_DIR"] = CACHE
@@ -21,7 +21,7 @@ if "--xla_force_host_platform_device_count" not in os.environ.get("XLA_FLAGS", "
     os.environ["XLA_FLAGS"] = (
         os.environ.get("XLA_FLAGS", "") + " --xla_force_host_platform_device_count=1"
     ).strip()
-configure_process(host_devices=False, cache_dir=CACHE)
+configure(host_devices=False, cache_dir=CACHE)
 sys.path.insert(0, str(Path(__file__).parent))
 
 import pytest  # noqa: E402

@@ -29,16 +29,16 @@ import numpy as np
 
 
 def capture(out: Path) -> None:
-    from smibjax.cli.process import configure_process
+    from smibjax import configure
 
-    configure_process(cache=False)
+    configure(cache=False)
     import jax
 
     import smibjax as sj
-    from smibjax.cct import critical_clearing_times
+    from smibjax._cct import critical_clearing_times
+    from smibjax._montecarlo import MonteCarloSpec, compute_chunk
+    from smibjax._scenarios import ScenarioDistribution
     from smibjax.controllers import make_controller
-    from smibjax.montecarlo import MonteCarloSpec, compute_chunk
-    from smibjax.scenarios import ScenarioDistribution
     from tuning.config import check_config, load_config
     from tuning.driver import build
     from tuning.search import make_population_score

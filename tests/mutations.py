@@ -54,7 +54,7 @@ MUTANTS = [
     # -- the stop-gradient on step lengths (_stepping.py) --------------------------
     Mutant(
         "rigidsteps-removed",
-        "src/smibjax/simulate.py",
+        "src/smibjax/_simulate.py",
         "        RigidSteps(\n"
         "            dfx.PIDController(rtol=rtol, atol=atol, norm=_RmsDynamic(loop.n_dynamic))\n"
         "        ),",
@@ -140,7 +140,7 @@ MUTANTS = [
     # -- network stages (network.py) ------------------------------------------------
     Mutant(
         "stage-post-and-restored-swapped",
-        "src/smibjax/network.py",
+        "src/smibjax/_network.py",
         "jnp.where(in_fault, b, jnp.where(in_post, c, a))",
         "jnp.where(in_fault, b, jnp.where(in_post, a, c))",
         ("tests/test_network.py", SIM_REF),
@@ -148,7 +148,7 @@ MUTANTS = [
     ),
     Mutant(
         "stage-fault-until-reclose",
-        "src/smibjax/network.py",
+        "src/smibjax/_network.py",
         "in_fault = (t >= fault.t_fault) & (t < fault.t_clear)",
         "in_fault = (t >= fault.t_fault) & (t < fault.t_reclose)",
         ("tests/test_network.py", SIM_REF),
@@ -156,7 +156,7 @@ MUTANTS = [
     ),
     Mutant(
         "stage-post-never-ends",
-        "src/smibjax/network.py",
+        "src/smibjax/_network.py",
         "in_post = (t >= fault.t_clear) & (t < fault.t_reclose)",
         "in_post = t >= fault.t_clear",
         ("tests/test_network.py", SIM_REF),
@@ -165,7 +165,7 @@ MUTANTS = [
     # -- losses.py ---------------------------------------------------------------------
     Mutant(
         "soft-settling-ignores-band",
-        "src/smibjax/losses.py",
+        "src/smibjax/_losses.py",
         "s = jax.nn.sigmoid((remaining - band) / width) * after",
         "s = jax.nn.sigmoid(remaining / width) * after",
         ("tests/test_losses.py",),
@@ -173,7 +173,7 @@ MUTANTS = [
     ),
     Mutant(
         "soft-settling-ignores-stop",
-        "src/smibjax/losses.py",
+        "src/smibjax/_losses.py",
         "dev = jnp.where(t > t_stop, 10 * band, dev)",
         "dev = dev",
         ("tests/test_losses.py",),
@@ -181,7 +181,7 @@ MUTANTS = [
     ),
     Mutant(
         "overshoot-loss-from-zero",
-        "src/smibjax/losses.py",
+        "src/smibjax/_losses.py",
         "z = jnp.where(traj.t >= traj.t_fault, dev / temperature, -jnp.inf)",
         "z = dev / temperature",
         ("tests/test_losses.py",),
@@ -191,7 +191,7 @@ MUTANTS = [
     # -- metrics.py -------------------------------------------------------------------
     Mutant(
         "settling-no-interpolation",
-        "src/smibjax/metrics.py",
+        "src/smibjax/_metrics.py",
         "t_cross = t[i] + frac * (t[i + 1] - t[i])",
         "t_cross = t[i]",
         ("tests/test_metrics.py",),
@@ -199,7 +199,7 @@ MUTANTS = [
     ),
     Mutant(
         "settling-ignores-t-from",
-        "src/smibjax/metrics.py",
+        "src/smibjax/_metrics.py",
         "outside = (dev > band) & (t >= t_from)",
         "outside = dev > band",
         ("tests/test_metrics.py",),
@@ -207,7 +207,7 @@ MUTANTS = [
     ),
     Mutant(
         "settling-never-inf",
-        "src/smibjax/metrics.py",
+        "src/smibjax/_metrics.py",
         "return jnp.where(last == n - 1, jnp.inf, jnp.maximum(settled, 0.0))",
         "return jnp.maximum(settled, 0.0)",
         ("tests/test_metrics.py",),
@@ -215,7 +215,7 @@ MUTANTS = [
     ),
     Mutant(
         "stable-ignores-budget",
-        "src/smibjax/metrics.py",
+        "src/smibjax/_metrics.py",
         "traj.lost_sync | traj.budget_exhausted,",
         "traj.lost_sync,",
         ("tests/test_metrics.py::test_a_run_that_spent_its_step_budget_is_not_stable",),
@@ -223,7 +223,7 @@ MUTANTS = [
     ),
     Mutant(
         "overshoot-band-from-zero",
-        "src/smibjax/metrics.py",
+        "src/smibjax/_metrics.py",
         "return jnp.max(jnp.where(traj.t >= traj.t_fault, dev, 0.0))",
         "return jnp.max(dev)",
         ("tests/test_metrics.py",),
@@ -232,7 +232,7 @@ MUTANTS = [
     # -- domain of the model (closed_loop.py) ---------------------------------------
     Mutant(
         "e-min-check-removed",
-        "src/smibjax/closed_loop.py",
+        "src/smibjax/_closed_loop.py",
         "        & (E > E_MIN)\n",
         "",
         (
@@ -242,7 +242,7 @@ MUTANTS = [
     ),
     Mutant(
         "reactance-threshold-fault-shunt-sign",
-        "src/smibjax/closed_loop.py",
+        "src/smibjax/_closed_loop.py",
         "return (xs - X_MIN) / (plant.X1 * stage.X2) - stage.Bf",
         "return (xs - X_MIN) / (plant.X1 * stage.X2) + stage.Bf",
         (
@@ -252,7 +252,7 @@ MUTANTS = [
     ),
     Mutant(
         "reactance-check-removed",
-        "src/smibjax/closed_loop.py",
+        "src/smibjax/_closed_loop.py",
         "        & (B < b_lim)\n",
         "",
         (
@@ -282,7 +282,7 @@ MUTANTS = [
     ),
     Mutant(
         "one-slice-uncommitted",
-        "src/smibjax/parallel.py",
+        "src/smibjax/_parallel.py",
         "            out = single(jax.device_put(replicated, d), jax.device_put(batched, d))",
         "            out = single(replicated, batched)",
         (

@@ -11,7 +11,7 @@ import pytest
 
 import smibjax as sj
 from conftest import STABLE
-from smibjax.cct import _islands, critical_clearing_times, scan_durations
+from smibjax._cct import _islands, critical_clearing_times, scan_durations
 from smibjax.cli import main
 
 # The issue-19 case: beta = -1 under the realistic limits with realizable adaptation,

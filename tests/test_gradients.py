@@ -23,7 +23,7 @@ import pytest
 
 import smibjax as sj
 from conftest import STABLE
-from smibjax.losses import LossWeights, scenario_loss
+from smibjax._losses import LossWeights, scenario_loss
 
 T_END = 4.0
 T_CLEAR = 0.7037  # clearing off the 10 ms sample grid

@@ -15,17 +15,17 @@ import pytest
 
 import smibjax as sj
 from conftest import ROOT, STABLE, cli_env
-from smibjax.cct import critical_clearing_times
-from smibjax.cli import main
-from smibjax.cli.runs import read_rows, run_montecarlo
-from smibjax.montecarlo import (
+from smibjax._cct import critical_clearing_times
+from smibjax._montecarlo import (
     COLUMNS,
     MonteCarloSpec,
     compute_chunk,
     summarize,
     wilson_interval,
 )
-from smibjax.scenarios import ScenarioDistribution, sample_scenarios
+from smibjax._scenarios import ScenarioDistribution, sample_scenarios
+from smibjax.cli import main
+from smibjax.cli.runs import read_rows, run_montecarlo
 
 T_END = 6.0  # a shorter horizon than 10 s, still long enough to settle
 GAINS = {k: float(getattr(sj.Gains.paper("aftsc", **STABLE), k)) for k in sj.GAIN_NAMES}
@@ -222,7 +222,7 @@ def test_cct_bisection_brackets_the_stability_boundary():
 
 def test_cct_solver_tolerances_reach_the_runs(monkeypatch):
     """The CCT engine's runs use the tolerances given (traced, not run)."""
-    import smibjax.batch as cct_module
+    import smibjax._batch as cct_module
 
     seen = {}
 

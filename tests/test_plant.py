@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 
 import smibjax as sj
-from smibjax.network import Stage, fault_stage, prefault_stage
-from smibjax.plant import equilibrium_state
+from smibjax._network import Stage, fault_stage, prefault_stage
+from smibjax._plant import equilibrium_state
 
 rng = np.random.default_rng(0)
 
@@ -46,7 +46,7 @@ def test_operating_point_is_an_open_loop_equilibrium_with_its_field_voltage():
 def test_input_limits_hard_and_soft():
     import jax
 
-    from smibjax.plant import apply_limits
+    from smibjax._plant import apply_limits
 
     real, paper = sj.Plant.preset("realistic"), sj.Plant()
     uf, ur = apply_limits(7.0, -3.0, real)

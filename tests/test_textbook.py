@@ -93,7 +93,7 @@ def test_no_control_holds_the_operating_point():
 def test_cct_synchronism_criterion_matches_the_equal_area_criterion():
     """`critical_clearing_times(criterion="synchronism")` with no control on the
     classical model: within 2 ms of the equal-area CCT at three locations."""
-    from smibjax.cct import critical_clearing_times
+    from smibjax._cct import critical_clearing_times
 
     lams = (0.2, 0.5, 0.8)
     res = critical_clearing_times(

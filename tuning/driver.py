@@ -17,6 +17,7 @@ import numpy as np
 import optax
 
 import smibjax as sj
+from smibjax import TERM_NAMES, GainsFile, LossWeights, ScenarioDistribution
 from smibjax.cli.files import (
     atomic_write,
     read_gains,
@@ -25,9 +26,6 @@ from smibjax.cli.files import (
     write_text,
 )
 from smibjax.controllers import CONTROLLERS, EstimateBox, make_controller
-from smibjax.gainsfile import GainsFile
-from smibjax.losses import TERM_NAMES, LossWeights
-from smibjax.scenarios import ScenarioDistribution
 
 from .params import GainSpace, gains_to_dict
 from .search import cross_entropy_search, make_population_score

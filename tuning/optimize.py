@@ -6,7 +6,7 @@ fault scenarios; checkpoints, resume, report.
         [--controller aftsc|asc|avr-pss] [--adaptation oracle|realizable] [--quiet]
 
 This module is the command line only: it configures the process (host devices,
-float64, equinox's error mode, the compilation cache; `smibjax.cli.process`) before
+float64, equinox's error mode, the compilation cache; `smibjax.configure`) before
 JAX loads, then runs `tuning.driver`.
 """
 
@@ -57,11 +57,11 @@ def resolve_config(args) -> dict:
 
 
 def main(argv=None) -> int:
-    from smibjax.cli.process import configure_process
+    from smibjax import configure
 
-    configure_process()
+    configure()
+    from smibjax import ParameterError
     from smibjax.cli.files import write_json
-    from smibjax.parameters import ParameterError
 
     from .driver import CHECKPOINT, UsageError, build, finish, run
     from .resume import SessionClock, start_mode

@@ -132,7 +132,7 @@ def _train_solver(setup) -> str:
 
 def _paper_fault_lines(tr, setup) -> list[str]:
     """The tuned controller on the paper's fault: its physics, in one table."""
-    from smibjax.metrics import metrics
+    from smibjax import metrics
 
     m = metrics(tr)
     after = np.asarray(tr.t) >= float(tr.t_fault) + 0.2
@@ -330,7 +330,7 @@ def write_report(
         + ", smooth surrogate losses; gradients of this path match central finite "
         "differences (tests/test_gradients.py, tests/test_losses.py).",
         f"- Validation: Tsit5 with adaptive steps (rtol 1e-6, atol 1e-8), horizon "
-        f"{setup.val_t_end:g} s, hard input limits, exact metrics (MODEL.md section 4).",
+        f"{setup.val_t_end:g} s, hard input limits, exact metrics (docs/model.md section 4).",
         "",
         "![history](history.png)",
         "![settling](settling_hist.png)",

@@ -3,8 +3,8 @@
 One call evaluates a whole batch of fault scenarios: `jax.vmap` over the scenarios,
 split over the host devices (one per core), so every core integrates its own slice
 with its own solver loop: the value-and-grad as one `shard_map` program
-(`smibjax.parallel.shard_batch`, compiled once), the forward losses and the
-validation by `smibjax.parallel.device_map`.
+(`smibjax._parallel.shard_batch`, compiled once), the forward losses and the
+validation by `smibjax._parallel.device_map`.
 """
 
 from __future__ import annotations
@@ -19,11 +19,18 @@ import numpy as np
 import optax
 
 import smibjax as sj
-from smibjax.batch import Engine, Scenarios
+from smibjax import (
+    Engine,
+    LossWeights,
+    Scenarios,
+    aggregate,
+    device_map,
+    loss_terms,
+    physics_summary,
+    scenario_loss,
+    shard_batch,
+)
 from smibjax.controllers import AbstractController, EstimateBox, as_controller
-from smibjax.losses import LossWeights, aggregate, loss_terms, scenario_loss
-from smibjax.metrics import physics_summary
-from smibjax.parallel import device_map, shard_batch
 
 from .params import GainSpace
 
@@ -90,7 +97,7 @@ def draw_scenarios(key, n: int, dist, plant: sj.Plant):
     """`n` scenarios from `key`: a batched `Fault` (drawn exactly as
     `sample_faults(key, n, dist.faults)`) and the true damping D of each (uniform in
     `dist.D` from an independent key, or the plant's D where not drawn)."""
-    from smibjax.scenarios import sample_faults
+    from smibjax import sample_faults
 
     faults = sample_faults(key, n, dist.faults)
     if dist.D is None:
@@ -178,7 +185,7 @@ class StepInfo(NamedTuple):
 
     loss: jax.Array  # the batch aggregate (mean + tail_weight CVaR)
     per_scenario: jax.Array  # each scenario's loss
-    terms: dict  # each named loss term, per scenario (`smibjax.losses.TERMS`)
+    terms: dict  # each named loss term, per scenario (`smibjax._losses.TERMS`)
     stable: jax.Array  # each scenario's stability (training solver)
     grad_norm: float  # global norm of the batch gradient, before clipping
     dropped: int  # scenarios left out for a non-finite gradient

@@ -17,9 +17,9 @@ from pathlib import Path
 
 import numpy as np
 
+from .._gainsfile import Context, resolve
+from .._parameters import ParameterError
 from ..controllers.synergetic import GAIN_NAMES, Gains
-from ..gainsfile import Context, resolve
-from ..parameters import ParameterError
 from .files import read_gains_file, write_json, write_text
 
 __all__ = [
@@ -33,7 +33,7 @@ __all__ = [
     "run",
 ]
 
-# Built-in gain sets: the paper's (which lose synchronism, MODEL.md section 2) and
+# Built-in gain sets: the paper's (which lose synchronism, docs/model.md section 2) and
 # beta1 = beta2 = -1, the sign-corrected choice that stabilizes the loop.
 BUILTIN_SETS = {
     "paper": ("aftsc", {}),
@@ -98,7 +98,7 @@ def context_text(ctx: dict) -> tuple[str, str, str]:
     is its preset plus any field the file overrides, e.g. 'realistic (uf_max=3)'."""
     plant = dict(ctx["plant"])
     preset = plant.pop("preset")
-    from ..parameters import PRESETS
+    from .._parameters import PRESETS
 
     base = PRESETS[preset]
     extra = [
@@ -240,8 +240,8 @@ def write_compare(out: Path, summaries, rows, cct, contexts=None) -> None:
 
 
 def add_parser(sub) -> None:
-    from .cct import add_cct_options
-    from .montecarlo import add_mc_options
+    from ._cct import add_cct_options
+    from ._montecarlo import add_mc_options
     from .options import add_max_steps, add_phi_layer, add_tolerances
 
     k = sub.add_parser(
@@ -284,8 +284,8 @@ def add_parser(sub) -> None:
 
 
 def run(args) -> int:
-    from .cct import check_args, progress_bar, run_grouped
-    from .montecarlo import run_folder, runner_of, spec_from_args
+    from ._cct import check_args, progress_bar, run_grouped
+    from ._montecarlo import run_folder, runner_of, spec_from_args
     from .options import (
         CLIError,
         build_parameters,

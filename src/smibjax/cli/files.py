@@ -8,9 +8,9 @@ import tempfile
 from collections.abc import Callable
 from pathlib import Path
 
+from .._gainsfile import GainsFile, check_complete, is_schema_table, legacy, validate
+from .._parameters import ParameterError
 from ..controllers.synergetic import GAIN_NAMES
-from ..gainsfile import GainsFile, check_complete, is_schema_table, legacy, validate
-from ..parameters import ParameterError
 
 try:  # Python >= 3.11
     import tomllib
@@ -178,7 +178,7 @@ def write_npz(path: str | os.PathLike, arrays: dict) -> Path:
 
 
 def read_gains_file(path: str | os.PathLike, complete: bool = False) -> GainsFile:
-    """A gains file (`smibjax.gainsfile`): schema, or a flat table of gains (`legacy`,
+    """A gains file (`smibjax._gainsfile`): schema, or a flat table of gains (`legacy`,
     with the paper's context). With `complete`, the paper's law needs every gain but
     c1, c2 (a gain set for batch studies)."""
     p = Path(path)

@@ -16,9 +16,8 @@ import re
 import sys
 from pathlib import Path
 
-from ..controllers import CONTROLLERS, as_controller, parameter_set
-from ..gainsfile import Context, resolve
-from ..parameters import (
+from .._gainsfile import Context, resolve
+from .._parameters import (
     PLANT_NAMES,
     PRESETS,
     InitialEstimates,
@@ -26,7 +25,8 @@ from ..parameters import (
     ParameterError,
     Plant,
 )
-from ..scenarios import ScenarioDistribution
+from .._scenarios import ScenarioDistribution
+from ..controllers import CONTROLLERS, as_controller, parameter_set
 from .files import read_data, read_gains, read_gains_file
 
 __all__ = [

@@ -82,7 +82,7 @@ def check_plot_path(path, option: str = "--plot"):
     .svg, ...); otherwise a one-line `ParameterError`."""
     from pathlib import Path
 
-    from ..parameters import ParameterError
+    from .._parameters import ParameterError
 
     p = Path(path)
     fmt = p.suffix[1:].lower()

@@ -8,10 +8,10 @@ from pathlib import Path
 
 import numpy as np
 
+from .._metrics import metrics
+from .._parameters import Fault, Plant
+from .._simulate import simulate
 from ..controllers.synergetic import Gains
-from ..metrics import metrics
-from ..parameters import Fault, Plant
-from ..simulate import simulate
 from .files import atomic_write, write_json, write_npz, write_text
 from .plotting import plot_figure, trajectory_arrays
 from .report import markdown_table, metrics_dict

@@ -9,10 +9,10 @@ from pathlib import Path
 
 import numpy as np
 
+from .._metrics import metrics
+from .._parameters import Fault
+from .._simulate import simulate
 from ..controllers import describe
-from ..metrics import metrics
-from ..parameters import Fault
-from ..simulate import simulate
 from .files import check_new_file, write_npz
 from .options import (
     CLIError,

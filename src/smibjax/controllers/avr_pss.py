@@ -26,10 +26,10 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
 
+from .._network import prefault_stage
+from .._parameters import _f
+from .._plant import equilibrium_state, operating_field_voltage, terminal_voltage
 from .._validate import is_concrete, require
-from ..network import prefault_stage
-from ..parameters import _f
-from ..plant import equilibrium_state, operating_field_voltage, terminal_voltage
 from .base import AbstractController, ControllerOutput
 
 __all__ = ["AvrPss"]

@@ -16,10 +16,10 @@ from typing import ClassVar, NamedTuple
 import equinox as eqx
 from jaxtyping import Array, Float
 
+from .._network import Stage
+from .._parameters import InitialEstimates, OperatingPoint, Plant
+from .._plant import Trig
 from .._validate import ParameterError
-from ..network import Stage
-from ..parameters import InitialEstimates, OperatingPoint, Plant
-from ..plant import Trig
 
 __all__ = ["AbstractController", "ControllerOutput"]
 
@@ -76,14 +76,14 @@ class AbstractController(eqx.Module):
     ) -> ControllerOutput:
         """Commanded inputs, internal-state derivative and diagnostics at time t (s).
         `trig`: (sin delta, cos delta) of the measured angle when the caller has
-        them (`smibjax.plant.sincos`: the closed loop computes them once per
+        them (`smibjax._plant.sincos`: the closed loop computes them once per
         evaluation for the controller and the plant); None: compute them."""
 
     def parameters(self) -> dict[str, float]:
         """The tunable parameters as plain floats (the gains-file layout)."""
         return {n: float(getattr(self, n)) for n in self.parameter_kinds()}
 
-    # The split a batch engine needs (`smibjax.batch`): the tunable part of a
+    # The split a batch engine needs (`smibjax._batch`): the tunable part of a
     # controller is traced (one compiled program for any values, vmapped over lanes
     # where every lane has its own), the rest is its structure, compiled in.
 

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import jax.numpy as jnp
 
-from ..plant import operating_field_voltage
+from .._plant import operating_field_voltage
 from .base import AbstractController, ControllerOutput
 
 __all__ = ["NoControl"]

@@ -8,7 +8,7 @@ from typing import Literal
 import equinox as eqx
 import numpy as np
 
-from ...parameters import (
+from ..._parameters import (
     ParameterError,
     Scalar,
     _f,
@@ -36,7 +36,7 @@ GAIN_FIELDS = (
 
 
 class Gains(eqx.Module):
-    """Controller gains of the adaptive synergetic law (MODEL.md section 2).
+    """Controller gains of the adaptive synergetic law (docs/model.md section 2).
 
     `alpha = r/p` in (1/2, 1]: alpha < 1 is the finite-time controller (AFTSC, paper
     alpha = 5/7), alpha = 1 the asymptotic baseline (ASC). Paper defaults; k1, k2 are
@@ -55,7 +55,7 @@ class Gains(eqx.Module):
     k1: Scalar = _field(1.0)  # oracle term weight of th1
     k2: Scalar = _field(1.0)  # oracle term weight of th2
     # Weights of e1 in the macro-variables, phi_i = c_i e1 + e2 + beta_i e_(i+2)
-    # (MODEL.md section 2, "A ceiling on the manifold's speed"): 1 is the paper's form.
+    # (docs/model.md section 2, "A ceiling on the manifold's speed"): 1 is the paper's form.
     c1: Scalar = _field(1.0)
     c2: Scalar = _field(1.0)
 

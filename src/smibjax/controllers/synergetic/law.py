@@ -5,7 +5,7 @@ finite-time synergetic controller (AFTSC, eqs. 21-22), alpha = 1 the adaptive sy
 baseline (ASC, eqs. 36-37). The controller sees the measured plant state z through its
 *nominal* (pre-fault) network model. The law evaluates f and g of the affine model
 dx/dt = f + g u in docs/model.md's closed forms (`drift_and_gain_closed_form`), with one sin
-and one cos of the rotor angle (`smibjax.plant.sincos`): about half the cost of a
+and one cos of the rotor angle (`smibjax._plant.sincos`): about half the cost of a
 Monte Carlo run was XLA evaluating them again in every fused consumer. `drift_and_gain`
 derives f and g by `jax.jvp` of the coordinate map z -> x along the nominal plant
 vector field, and the tests hold the closed forms to it (1e-12 over random states and
@@ -21,10 +21,10 @@ import jax
 import jax.numpy as jnp
 from jaxtyping import Array, Float
 
+from ..._network import prefault_stage
+from ..._parameters import OperatingPoint, Plant
+from ..._plant import Trig, plant_vector_field
 from ..._validate import is_concrete
-from ...network import prefault_stage
-from ...parameters import OperatingPoint, Plant
-from ...plant import Trig, plant_vector_field
 from .gains import Gains
 
 __all__ = [
@@ -150,7 +150,7 @@ def paper_coordinates(
     """x = (delta, domega, Pe, Psvc) of the measured state z = (delta, domega, E, B)
     on the nominal network (X2 = XL, Bf = 0):
     Pe = E V sin(delta)/Xs and Psvc = Mt Pe with Mt = Xs/(Xs - X1 X2 B) - 1.
-    `trig`: (sin delta, cos delta) if already computed (`smibjax.plant.sincos`)."""
+    `trig`: (sin delta, cos delta) if already computed (`smibjax._plant.sincos`)."""
     return _affine_model(z, plant, trig)[0]
 
 
@@ -180,7 +180,7 @@ def drift_and_gain_closed_form(
     """docs/model.md's closed forms of (f3, f4) and g (errata applied), the ones the
     control law evaluates: f3 = (-a + x2 cot x1) x3 + c V^2 sin(2 x1)/(2 Xs),
     g31 = V sin(x1)/Xs, f4 = Mt f3 + Nt (B - B0)/Tr, g41 = Mt g31, g42 = -Nt.
-    `trig`: (sin delta, cos delta) if already computed (`smibjax.plant.sincos`)."""
+    `trig`: (sin delta, cos delta) if already computed (`smibjax._plant.sincos`)."""
     _, f, g = _affine_model(z, plant, trig)
     return f, g
 
@@ -226,7 +226,7 @@ def control_law(
     x2 of each law becomes c_i x2 (c1 = c2 = 1: the paper, the default). `layer` > 0:
     the boundary-layer form of the evolution law (see `evolution`; 0: exact).
     f and g are the closed forms (`drift_and_gain_closed_form`); `trig`: (sin delta,
-    cos delta) if already computed (`smibjax.plant.sincos`).
+    cos delta) if already computed (`smibjax._plant.sincos`).
     """
     x, f, g = _affine_model(z, plant, trig)
     e1 = x[0] - op.delta_e

@@ -16,8 +16,8 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
 
+from ..._parameters import _f
 from ..._validate import ParameterError, is_concrete
-from ...parameters import _f
 
 __all__ = ["EstimateBox", "project", "synergetic_options", "OPTION_NAMES"]
 

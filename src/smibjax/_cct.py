@@ -1,8 +1,8 @@
-"""Critical clearing time (MODEL.md section 4): the largest clearing duration
+"""Critical clearing time (docs/model.md section 4): the largest clearing duration
 t_clear - t_fault (s) such that the run is stable for it and for every shorter
 duration on the tolerance grid.
 
-Stability of a run is judged by one of two criteria (`CRITERIA`): "settled" (MODEL.md
+Stability of a run is judged by one of two criteria (`CRITERIA`): "settled" (docs/model.md
 section 4: no loss of synchronism and delta back in its band at t_end) or
 "synchronism" (the industry definition: no loss of synchronism up to t_end, and the
 solver's step budget not spent).
@@ -45,16 +45,16 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ._validate import require_positive, require_samples
-from .batch import Engine, Scenarios
-from .controllers import as_controller
-from .parameters import (
+from ._batch import Engine, Scenarios
+from ._parameters import (
     Fault,
     InitialEstimates,
     OperatingPoint,
     ParameterError,
     Plant,
 )
+from ._validate import require_positive, require_samples
+from .controllers import as_controller
 
 __all__ = [
     "critical_clearing_times",
@@ -64,7 +64,7 @@ __all__ = [
     "STATUSES",
 ]
 
-# Stability criteria of a CCT run (MODEL.md section 2, "Baselines", and section 4).
+# Stability criteria of a CCT run (docs/model.md section 2, "Baselines", and section 4).
 CRITERIA = ("settled", "synchronism")
 STATUSES = ("ok", "non_monotone", "exceeds_window", "unstable_at_min")
 

@@ -12,8 +12,7 @@ import equinox as eqx
 import jax.numpy as jnp
 from jaxtyping import Array, Bool, Float
 
-from .controllers import AbstractController, Gains, as_controller
-from .network import (
+from ._network import (
     Stage,
     by_stage,
     fault_stage,
@@ -21,13 +20,14 @@ from .network import (
     prefault_stage,
     stage_at,
 )
-from .parameters import Fault, InitialEstimates, OperatingPoint, Plant
-from .plant import (
+from ._parameters import Fault, InitialEstimates, OperatingPoint, Plant
+from ._plant import (
     apply_limits,
     equilibrium_state,
     plant_vector_field,
     sincos,
 )
+from .controllers import AbstractController, Gains, as_controller
 
 __all__ = [
     "ClosedLoop",
@@ -44,7 +44,7 @@ N_DYNAMIC = 6  # the first six enter the error control; the effort integrals do 
 # Loss of synchronism is declared (and the run ends as unstable) when delta comes within
 # DELTA_MARGIN rad of the ends of the controller's angle range (0 and pi for the paper's
 # law, -pi and pi otherwise), E' falls below E_MIN, or a transfer reactance falls below
-# X_MIN: the control law has 1/sin(delta) and 1/Pe singularities there (MODEL.md
+# X_MIN: the control law has 1/sin(delta) and 1/Pe singularities there (docs/model.md
 # section 3) and no trajectory crosses them, so the spec's "delta leaves (0, pi)" is
 # detected a hair before the singularity instead of after it.
 DELTA_MARGIN = 1e-3

@@ -31,8 +31,8 @@ import dataclasses
 import math
 from collections.abc import Callable
 
+from ._parameters import PLANT_NAMES, PRESETS, ParameterError
 from .controllers import CONTROLLERS, controller_parameter_names
-from .parameters import PLANT_NAMES, PRESETS, ParameterError
 
 __all__ = [
     "SCHEMA",
@@ -214,7 +214,7 @@ def validate(data: dict, path=None) -> GainsFile:
 
 
 def _check_alpha(controller: str, gains: dict, path) -> None:
-    """aftsc needs alpha < 1, asc alpha = 1 (MODEL.md section 2)."""
+    """aftsc needs alpha < 1, asc alpha = 1 (docs/model.md section 2)."""
     alpha = gains.get("alpha")
     if alpha is None:
         return

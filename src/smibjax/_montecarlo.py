@@ -3,7 +3,7 @@
 A run is described by a `MonteCarloSpec` (plain numbers, JSON-able). Scenario i depends
 only on (seed, i) (see `sample_scenarios`), chunk k holds scenarios
 [k chunk, (k + 1) chunk), and `compute_chunk(spec, k)` is a pure function of the two
-(through the batch engine, `smibjax.batch`): chunks can run in any order, in any
+(through the batch engine, `smibjax._batch`): chunks can run in any order, in any
 process, and be retried. `summarize` reduces the rows. Run folders (chunk files,
 resume, CSV and markdown) are the command line's: `smibjax.cli.runs`.
 """
@@ -19,12 +19,12 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from ._batch import Engine, Outcome, Scenarios
+from ._metrics import PHYSICS, physics_summary
+from ._parameters import InitialEstimates, OperatingPoint, ParameterError, Plant
+from ._scenarios import ScenarioDistribution, sample_scenarios
 from ._validate import require_count, require_positive, require_samples
-from .batch import Engine, Outcome, Scenarios
 from .controllers import CONTROLLERS, as_controller, parameter_set
-from .metrics import PHYSICS, physics_summary
-from .parameters import InitialEstimates, OperatingPoint, ParameterError, Plant
-from .scenarios import ScenarioDistribution, sample_scenarios
 
 __all__ = [
     "COLUMNS",

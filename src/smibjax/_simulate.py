@@ -36,7 +36,22 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Bool, Float, Int
 
+from ._closed_loop import (
+    ClosedLoop,
+    closed_loop_vector_field,
+    healthy,
+    initial_state,
+)
 from ._fixed import solve_fixed
+from ._network import prefault_stage, stage_at
+from ._parameters import (
+    Fault,
+    InitialEstimates,
+    OperatingPoint,
+    ParameterError,
+    Plant,
+)
+from ._plant import apply_limits, equilibrium_state, sincos, terminal_voltage
 from ._stepping import RigidSteps
 from ._validate import (
     is_concrete,
@@ -46,26 +61,11 @@ from ._validate import (
     require_samples,
     require_x64,
 )
-from .closed_loop import (
-    ClosedLoop,
-    closed_loop_vector_field,
-    healthy,
-    initial_state,
-)
 from .controllers import AbstractController, Gains, as_controller
-from .network import prefault_stage, stage_at
-from .parameters import (
-    Fault,
-    InitialEstimates,
-    OperatingPoint,
-    ParameterError,
-    Plant,
-)
-from .plant import apply_limits, equilibrium_state, sincos, terminal_voltage
 
 __all__ = ["Trajectory", "simulate", "is_stable", "DEFAULT_DELTA_BAND"]
 
-DEFAULT_DELTA_BAND = 0.01  # rad, MODEL.md section 4
+DEFAULT_DELTA_BAND = 0.01  # rad, docs/model.md section 4
 
 Series = Float[Array, "*batch n"]
 Scalar = Float[Array, "*batch"]
@@ -108,7 +108,7 @@ class Trajectory(eqx.Module):
 
 
 def is_stable(lost_sync, delta_end, delta_e, delta_band: float = DEFAULT_DELTA_BAND):
-    """MODEL.md section 4: no loss of synchronism (nor a run cut short: pass
+    """docs/model.md section 4: no loss of synchronism (nor a run cut short: pass
     `lost_sync | budget_exhausted`), and delta back within `delta_band` (rad) of
     delta_e at t_end."""
     return (~lost_sync) & (jnp.abs(delta_end - delta_e) <= delta_band)

@@ -6,7 +6,7 @@ leading batch axis) and differentiated. Values are validated when built from con
 numbers (`__check_init__`); a bad value raises `ParameterError` with one line naming the
 value and what is allowed.
 
-Names follow `MODEL.md` (sections 1-2); `Xdp` is the transient reactance X'_d.
+Names follow `docs/model.md` (sections 1-2); `Xdp` is the transient reactance X'_d.
 """
 
 from __future__ import annotations
@@ -62,7 +62,7 @@ def _values(module: eqx.Module) -> SimpleNamespace | None:
 class Plant(eqx.Module):
     """Physical parameters of the SMIB + SVC plant (per unit unless stated).
 
-    Paper defaults (MODEL.md section 1). The input limits default to none (the paper);
+    Paper defaults (docs/model.md section 1). The input limits default to none (the paper);
     `Plant.preset("realistic")` bounds u_f to [-5, 5] and u_r to [-1, 1]. Every value
     must be finite with |value| <= 1e6 (`MAX_MAGNITUDE`: beyond it the model's products
     overflow), except the input limits, which may be +-inf (no limit).
