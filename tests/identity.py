@@ -82,7 +82,9 @@ def capture(out: Path) -> None:
         criterion="synchronism",
         **kw,
     )
-    (out / "cct.json").write_text(json.dumps({"cct": cct, "cct_avr": cct_avr}))
+    (out / "cct.json").write_text(
+        json.dumps({"cct": cct.to_dict(), "cct_avr": cct_avr.to_dict()})
+    )
     cfg = load_config(None)
     cfg.update(steps=2, batch=2, seed=3)
     cfg["validation"].update(n=4, every=2, t_end=4.0)

@@ -55,7 +55,7 @@ def cct(criterion, progress=None):
         adaptation="realizable",
         criterion=criterion,
         progress=progress,
-    )
+    ).to_dict()  # the JSON layout the command line writes
 
 
 def test_scan_grid_and_islands():

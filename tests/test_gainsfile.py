@@ -3,6 +3,7 @@ it, every command uses it by default, a contradicting flag wins with a warning, 
 file loads with the paper's defaults and a note, bad context is one line and exit 2."""
 
 import json
+import types
 
 import pytest
 
@@ -131,7 +132,7 @@ def test_round_trip_every_command_uses_the_context(
         res["sets"] = {n: dict(per) for n in names}
         for k in per:
             res[k] = per[k] if len(names) == 1 else {n: per[k] for n in names}
-        return res
+        return types.SimpleNamespace(to_dict=lambda: res)
 
     import smibjax.cli.cct
 

@@ -106,7 +106,7 @@ def test_cct_synchronism_criterion_matches_the_equal_area_criterion():
         tol=5e-4,
         criterion="synchronism",
     )
-    got = res["sets"]["none"]["cct"]
+    got = res.sets["none"].cct
     want = [equal_area_cct(lam)[0] for lam in lams]
-    assert res["sets"]["none"]["status"] == ["ok"] * 3
+    assert res.sets["none"].status == ["ok"] * 3
     np.testing.assert_allclose(got, want, atol=2e-3)

@@ -222,7 +222,7 @@ def write_report(
                 setup.controller_of(g),
                 f,
                 with_damping(setup.plant, d),
-                t_end=setup.val_t_end,
+                save=sj.SaveOptions(t_end=setup.val_t_end),
             )
             for label, g in (("initial", g0), ("tuned", g1))
         }

@@ -116,19 +116,24 @@ def train_run(s: Setup, raw, fault: sj.Fault, D=None, scale=1.0) -> sj.Trajector
     plant = s.plant if D is None else with_damping(s.plant, D)
     plant = scaled_limits(plant, scale)
     if s.train_solver == "adaptive":
-        options = dict(
-            rtol=s.train_rtol, atol=s.train_atol, max_steps=s.train_max_steps
+        solver = sj.SolverOptions(
+            "adaptive",
+            rtol=s.train_rtol,
+            atol=s.train_atol,
+            max_steps=s.train_max_steps,
+            checkpoints=s.train_checkpoints,
         )
     else:
-        options = dict(solver="fixed", dt=s.train_dt)
+        solver = sj.SolverOptions(
+            "fixed", dt=s.train_dt, checkpoints=s.train_checkpoints
+        )
     return sj.simulate(
         s.controller_of(s.space.to_gains(raw)),
         fault,
         plant,
-        t_end=s.train_t_end,
+        solver=solver,
+        save=sj.SaveOptions(t_end=s.train_t_end),
         input_smoothing=s.input_smoothing,
-        checkpoints=s.train_checkpoints,
-        **options,
     )
 
 

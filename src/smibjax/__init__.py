@@ -32,6 +32,7 @@ if TYPE_CHECKING:  # the public names; loaded on first use (`__getattr__`)
     from ._batch import Engine as Engine
     from ._batch import Outcome as Outcome
     from ._batch import Scenarios as Scenarios
+    from ._cct import CCTResult as CCTResult
     from ._cct import critical_clearing_times as critical_clearing_times
     from ._closed_loop import ClosedLoop as ClosedLoop
     from ._closed_loop import closed_loop_vector_field as closed_loop_vector_field
@@ -45,10 +46,14 @@ if TYPE_CHECKING:  # the public names; loaded on first use (`__getattr__`)
     from ._metrics import Metrics as Metrics
     from ._metrics import metrics as metrics
     from ._metrics import physics_summary as physics_summary
+    from ._montecarlo import MonteCarloResult as MonteCarloResult
     from ._montecarlo import MonteCarloSpec as MonteCarloSpec
+    from ._montecarlo import monte_carlo as monte_carlo
     from ._network import Stage as Stage
     from ._network import fault_stage as fault_stage
     from ._network import stage_at as stage_at
+    from ._options import SaveOptions as SaveOptions
+    from ._options import SolverOptions as SolverOptions
     from ._parallel import device_map as device_map
     from ._parallel import shard_batch as shard_batch
     from ._parameters import FAULT_NAMES as FAULT_NAMES

@@ -33,6 +33,7 @@ import numpy as np
 from jaxtyping import Array, Bool, Float, Int
 
 from ._metrics import DEFAULT_BANDS, Metrics, metrics
+from ._options import SaveOptions, SolverOptions
 from ._parallel import device_map
 from ._parameters import Fault, InitialEstimates, OperatingPoint, Plant
 from ._simulate import simulate
@@ -216,11 +217,8 @@ def _program(
             p,
             op=op,
             init=init,
-            t_end=e.t_end,
-            dt_save=e.dt_save,
-            rtol=e.rtol,
-            atol=e.atol,
-            max_steps=e.max_steps,
+            solver=SolverOptions(rtol=e.rtol, atol=e.atol, max_steps=e.max_steps),
+            save=SaveOptions(e.t_end, e.dt_save),
         )
         return Outcome(
             metrics(tr, e.delta_band, e.Vt_band, e.omega_band),

@@ -13,7 +13,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import numbers
-from collections.abc import Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 
 import jax
 import jax.numpy as jnp
@@ -29,6 +29,8 @@ from .controllers import CONTROLLERS, as_controller, parameter_set
 __all__ = [
     "COLUMNS",
     "MonteCarloSpec",
+    "MonteCarloResult",
+    "monte_carlo",
     "compute_chunk",
     "summarize",
     "wilson_interval",
@@ -287,6 +289,37 @@ def in_process_runner(
     """Run chunks one after another in this process (each spread over all devices)."""
     for k in chunks:
         yield k, compute_chunk(spec, k)
+
+
+@dataclasses.dataclass(frozen=True)
+class MonteCarloResult:
+    """A finished Monte Carlo run: its spec and one row per scenario (`rows`: column
+    name -> array over the scenarios in index order, the columns of `COLUMNS`)."""
+
+    spec: MonteCarloSpec
+    rows: dict[str, np.ndarray]
+
+    def summary(self) -> dict:
+        """The run's summary (`summarize`): stable fraction with its 95% Wilson
+        interval, loss-of-synchronism count, quantiles over the stable scenarios."""
+        return summarize(self.rows)
+
+    def to_dict(self) -> dict:
+        """JSON-able: {"spec": the spec's dict, "summary": `summary()`}."""
+        return {"spec": self.spec.to_dict(), "summary": self.summary()}
+
+
+def monte_carlo(
+    spec: MonteCarloSpec,
+    runner: Callable[[MonteCarloSpec, Iterable[int]], Iterator[tuple[int, dict]]]
+    | None = None,
+) -> MonteCarloResult:
+    """Run every chunk of `spec` (`runner(spec, chunks)` yields (k, rows of chunk k)
+    in any order; default: `in_process_runner`) and join the rows in index order."""
+    runner = runner or in_process_runner
+    parts = dict(runner(spec, range(spec.n_chunks)))
+    rows = {c: np.concatenate([parts[k][c] for k in sorted(parts)]) for c in COLUMNS}
+    return MonteCarloResult(spec, rows)
 
 
 def wilson_interval(k: int, n: int, z: float = 1.959964) -> tuple[float, float]:

@@ -127,7 +127,7 @@ def run_grouped(args, sets, plant, op, init, progress=None) -> dict:
             rtol=args.rtol,
             atol=args.atol,
             progress=progress() if progress else None,
-        )
+        ).to_dict()
         for g in groups.values()
     ]
     return results[0] if len(results) == 1 else merge_cct(results, list(sets))

@@ -17,6 +17,7 @@ import sys
 from pathlib import Path
 
 from .._gainsfile import Context, resolve
+from .._options import SolverOptions
 from .._parameters import (
     PLANT_NAMES,
     PRESETS,
@@ -40,6 +41,7 @@ __all__ = [
     "add_phi_layer",
     "with_phi_layer",
     "add_tolerances",
+    "solver_options",
     "parse_sets",
     "build_parameters",
     "build_from_args",
@@ -207,6 +209,12 @@ def add_max_steps(p: Parser) -> None:
         help="adaptive solver step budget per run (default 50000); a run that spends "
         "it is reported as such, not as stable",
     )
+
+
+def solver_options(args) -> SolverOptions:
+    """The adaptive solver's options of a command with `add_tolerances` and
+    `add_max_steps` (--rtol, --atol, --max-steps)."""
+    return SolverOptions(rtol=args.rtol, atol=args.atol, max_steps=args.max_steps)
 
 
 def add_tolerances(p: Parser) -> None:

@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from .._metrics import metrics
+from .._options import SaveOptions
 from .._parameters import Fault, Plant
 from .._simulate import simulate
 from ..controllers.synergetic import Gains
@@ -72,7 +73,7 @@ def reproduce(out: Path, preset: str = "paper", t_end: float = 10.0) -> dict:
         runs = {}
         for label, ctrl in _CONTROLLERS.items():
             gains = Gains.paper(ctrl, **overrides)
-            traj = simulate(gains, fault, plant, t_end=t_end)
+            traj = simulate(gains, fault, plant, save=SaveOptions(t_end=t_end))
             a = trajectory_arrays(traj)
             runs[label] = a
             stem = f"{set_name}_{ctrl}"
