@@ -8,7 +8,7 @@ import types
 import pytest
 
 import smibjax as sj
-from smibjax import gainsfile
+from smibjax import _gainsfile as gainsfile
 from smibjax.cli import main
 from smibjax.cli.files import read_gains, read_gains_file, write_gains_file
 

@@ -240,8 +240,8 @@ def write_compare(out: Path, summaries, rows, cct, contexts=None) -> None:
 
 
 def add_parser(sub) -> None:
-    from ._cct import add_cct_options
-    from ._montecarlo import add_mc_options
+    from .cct import add_cct_options
+    from .montecarlo import add_mc_options
     from .options import add_max_steps, add_phi_layer, add_tolerances
 
     k = sub.add_parser(
@@ -284,8 +284,8 @@ def add_parser(sub) -> None:
 
 
 def run(args) -> int:
-    from ._cct import check_args, progress_bar, run_grouped
-    from ._montecarlo import run_folder, runner_of, spec_from_args
+    from .cct import check_args, progress_bar, run_grouped
+    from .montecarlo import run_folder, runner_of, spec_from_args
     from .options import (
         CLIError,
         build_parameters,
