@@ -40,7 +40,7 @@ def capture(out: Path) -> None:
     from smibjax._scenarios import ScenarioDistribution
     from smibjax.controllers import make_controller
     from tuning.config import check_config, load_config
-    from tuning.driver import build
+    from tuning.problem import build
     from tuning.search import make_population_score
     from tuning.train import draw_scenarios, make_validate
 

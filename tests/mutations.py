@@ -73,7 +73,7 @@ MUTANTS = [
     # -- tuner resume ----------------------------------------------------------------
     Mutant(
         "resume-restarts",
-        "tuning/driver.py",
+        "tuning/loop.py",
         "    if resume:\n        state = load_checkpoint(out, opt, raw0)",
         "    if False:\n        state = load_checkpoint(out, opt, raw0)",
         ("tests/test_tuning.py::test_resume_trains_only_the_remaining_steps",),
@@ -292,10 +292,10 @@ MUTANTS = [
         "a one-slice batch runs on uncommitted inputs: the tuner's second step "
         "compiles its program again",
     ),
-    # -- atomic writes (cli/files.py)-----------------------------------------------------------
+    # -- atomic writes (_files.py)----------------------------------------------------------------
     Mutant(
         "io-write-in-place",
-        "src/smibjax/cli/files.py",
+        "src/smibjax/_files.py",
         "        write(tmp)\n        os.chmod(tmp, file_mode())",
         "        write(str(p))\n        os.chmod(tmp, file_mode())",
         ("tests/test_io.py",),

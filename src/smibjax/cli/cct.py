@@ -4,7 +4,7 @@ table on stdout and (with --out) a JSON file and its plot."""
 from __future__ import annotations
 
 from .._cct import check_options, critical_clearing_times, lane_kind
-from .files import check_new_file, write_json
+from .._files import check_new_file, write_json
 from .options import (
     CLIError,
     add_common,

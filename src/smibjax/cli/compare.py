@@ -17,10 +17,10 @@ from pathlib import Path
 
 import numpy as np
 
+from .._files import read_gains_file, write_json, write_text
 from .._gainsfile import Context, resolve
 from .._parameters import ParameterError
 from ..controllers.synergetic import GAIN_NAMES, Gains
-from .files import read_gains_file, write_json, write_text
 
 __all__ = [
     "BUILTIN_SETS",

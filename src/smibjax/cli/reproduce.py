@@ -8,12 +8,12 @@ from pathlib import Path
 
 import numpy as np
 
+from .._files import atomic_write, write_json, write_npz, write_text
 from .._metrics import metrics
 from .._options import SaveOptions
 from .._parameters import Fault, Plant
 from .._simulate import simulate
 from ..controllers.synergetic import Gains
-from .files import atomic_write, write_json, write_npz, write_text
 from .plotting import plot_figure, trajectory_arrays
 from .report import markdown_table, metrics_dict
 

@@ -17,6 +17,7 @@ from pathlib import Path
 import jax
 import numpy as np
 
+from .._files import write_json, write_npz, write_text
 from .._montecarlo import (
     COLUMNS,
     INT_COLUMNS,
@@ -25,7 +26,6 @@ from .._montecarlo import (
     summarize,
 )
 from .._parameters import ParameterError
-from .files import write_json, write_npz, write_text
 
 __all__ = ["run_montecarlo", "read_rows", "write_csv", "summary_markdown"]
 

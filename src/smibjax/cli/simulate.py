@@ -9,12 +9,13 @@ from pathlib import Path
 
 import numpy as np
 
+from .._figures import check_plot_path
+from .._files import check_new_file, write_npz
 from .._metrics import metrics
 from .._options import SaveOptions
 from .._parameters import Fault
 from .._simulate import simulate
 from ..controllers import describe
-from .files import check_new_file, write_npz
 from .options import (
     CLIError,
     add_common,
@@ -26,7 +27,7 @@ from .options import (
     positive,
     solver_options,
 )
-from .plotting import check_plot_path, plot_trajectory, trajectory_arrays
+from .plotting import plot_trajectory, trajectory_arrays
 from .report import format_summary, metrics_dict
 
 __all__ = ["add_parser", "run"]

@@ -1,4 +1,5 @@
-"""Files: gain tables in, atomic writes out. Nothing here is used by the numerical core."""
+"""Files: gain tables and gains files in, atomic writes out (the command line and the
+tuner read and write through here). Nothing here is used by the numerical core."""
 
 from __future__ import annotations
 
@@ -8,9 +9,9 @@ import tempfile
 from collections.abc import Callable
 from pathlib import Path
 
-from .._gainsfile import GainsFile, check_complete, is_schema_table, legacy, validate
-from .._parameters import ParameterError
-from ..controllers.synergetic import GAIN_NAMES
+from ._gainsfile import GainsFile, check_complete, is_schema_table, legacy, validate
+from ._parameters import ParameterError
+from .controllers.synergetic import GAIN_NAMES
 
 try:  # Python >= 3.11
     import tomllib
