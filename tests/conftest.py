@@ -1,14 +1,15 @@
-"""Shared fixtures. JAX compiles are the slow part of this suite: runs are shared per
-session and the persistent compilation cache lives in .jax_cache/ (gitignored)."""
+"""Shared fixtures (the shared helpers are in helpers.py). JAX compiles are the slow
+part of this suite: runs are shared per session and the persistent compilation cache
+lives in .jax_cache/ (gitignored)."""
 
 import os
 import sys
 from pathlib import Path
 
-from smibjax import configure
+sys.path.insert(0, str(Path(__file__).parent))
+from helpers import CACHE, STABLE  # noqa: E402
+from smibjax import configure  # noqa: E402
 
-ROOT = Path(__file__).resolve().parents[1]
-CACHE = str(ROOT / ".jax_cache")
 os.environ.setdefault("JAX_PLATFORMS", "cpu")
 # The suite is an entry point like the CLI: float64, equinox's checks as NaNs (so the
 # persistent cache in .jax_cache/ stores the simulator), one host device. Both are set
@@ -22,25 +23,11 @@ if "--xla_force_host_platform_device_count" not in os.environ.get("XLA_FLAGS", "
         os.environ.get("XLA_FLAGS", "") + " --xla_force_host_platform_device_count=1"
     ).strip()
 configure(host_devices=False, cache_dir=CACHE)
-sys.path.insert(0, str(Path(__file__).parent))
 
 import pytest  # noqa: E402
 
 import reference  # noqa: E402
 import smibjax as sj  # noqa: E402
-
-STABLE = {"beta1": -1.0, "beta2": -1.0}
-
-
-def cli_env() -> dict:
-    """The environment of the suite's command-line processes: the suite's compilation
-    cache, and one host device like this process, so that a process runs the programs
-    this one compiled (found in the cache) and gives this process's numbers."""
-    return {
-        **os.environ,
-        "SMIBJAX_CACHE_DIR": CACHE,
-        "XLA_FLAGS": "--xla_force_host_platform_device_count=1",
-    }
 
 
 def _whole_suite(config) -> bool:

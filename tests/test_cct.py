@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 import smibjax as sj
-from conftest import STABLE
+from helpers import STABLE
 from smibjax._cct import _islands, critical_clearing_times, scan_durations
 from smibjax.cli import main
 

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 import smibjax as sj
-from conftest import ROOT, cli_env
+from helpers import ROOT, cli_env
 from smibjax.cli import main
 
 KEYS = [
@@ -116,7 +116,7 @@ def test_a_command_run_in_process_keeps_the_suites_cache_and_devices(capsys):
     device."""
     import jax
 
-    from conftest import CACHE
+    from helpers import CACHE
 
     assert main(["simulate", "--t-end", "x"]) == 2
     capsys.readouterr()

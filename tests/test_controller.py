@@ -8,13 +8,12 @@ import pytest
 
 import smibjax as sj
 import smibjax.controllers.synergetic as syn
+from helpers import case_rng
 from smibjax._closed_loop import ClosedLoop, closed_loop_vector_field
 from smibjax._plant import sincos
 
-rng = np.random.default_rng(1)
 
-
-def random_state():
+def random_state(rng):
     return jnp.array(
         [
             rng.uniform(0.1, 3.0),
@@ -29,6 +28,7 @@ def random_state():
 def test_jvp_drift_and_gain_equal_closed_forms(k):
     """The control law evaluates the closed forms; the jvp of the coordinate map
     along the plant's own field is the reference they must equal, on any plant."""
+    rng = case_rng("jvp", k)
     plant = sj.Plant(
         Tr=rng.uniform(0.2, 2),
         T0=rng.uniform(2, 8),
@@ -39,7 +39,7 @@ def test_jvp_drift_and_gain_equal_closed_forms(k):
         XT=rng.uniform(0.05, 0.2),
         XL=rng.uniform(0.1, 0.6),
     )
-    z = random_state()
+    z = random_state(rng)
     f, g = syn.drift_and_gain(z, plant)
     fc, gc = syn.drift_and_gain_closed_form(z, plant)
     np.testing.assert_allclose(np.asarray(f), np.asarray(fc), rtol=1e-12, atol=1e-12)
@@ -116,6 +116,7 @@ def test_spow_values_and_finite_derivative_at_zero():
 def test_macro_variables_follow_the_evolution_law(alpha, k):
     """With th_hat = theta on the nominal (pre-fault) network and no limits, the control
     law makes dphi_i/dt = spow(-phi_i/T_i, alpha) exactly (eq. 26)."""
+    rng = case_rng("evolution", alpha, k)
     gains = sj.Gains(alpha=alpha, beta1=rng.uniform(-5, 5) or 1.0, beta2=-2.0, T2=0.5)
     plant, op = sj.Plant(), sj.OperatingPoint()
     loop = ClosedLoop(
@@ -123,7 +124,7 @@ def test_macro_variables_follow_the_evolution_law(alpha, k):
     )
     y = jnp.concatenate(
         [
-            random_state() * jnp.array([0.3, 0.3, 1, 0.1])
+            random_state(rng) * jnp.array([0.3, 0.3, 1, 0.1])
             + jnp.array([0.3, 0, 0.5, 0]),
             jnp.array([-0.2, 1.0, 0.0, 0.0]),
         ]

@@ -22,7 +22,7 @@ import numpy as np
 import pytest
 
 import smibjax as sj
-from conftest import STABLE
+from helpers import STABLE
 from smibjax._losses import LossWeights, scenario_loss
 
 T_END = 4.0

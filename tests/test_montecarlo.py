@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 import smibjax as sj
-from conftest import ROOT, STABLE, cli_env
+from helpers import ROOT, STABLE, cli_env
 from smibjax._cct import critical_clearing_times
 from smibjax._montecarlo import (
     COLUMNS,

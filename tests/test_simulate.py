@@ -7,7 +7,7 @@ import pytest
 
 import reference
 import smibjax as sj
-from conftest import STABLE
+from helpers import STABLE
 
 
 @pytest.mark.parametrize("controller", ["aftsc", "asc"])

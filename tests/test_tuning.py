@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 import smibjax as sj
-from conftest import cli_env
+from helpers import cli_env
 from smibjax.cli import main as smibjax_main
 from tuning.config import check_config, load_config
 from tuning.loop import run
@@ -369,7 +369,7 @@ def test_avr_pss_tunes_its_own_parameters(tmp_path):
     """The conventional baseline trains its own fields (tuning/configs/avr_pss.toml's
     bounds), writes them as its gains file, and its report names none of the paper's
     law's options (adaptation, boundary layer, estimates)."""
-    from conftest import ROOT
+    from helpers import ROOT
     from smibjax.controllers import AvrPss
 
     cfgfile = tmp_path / "tiny.toml"
@@ -400,7 +400,7 @@ def test_kill_9_then_resume_matches_an_uninterrupted_run(tmp_path, uninterrupted
     import subprocess
     import time
 
-    from conftest import ROOT
+    from helpers import ROOT
 
     cfgfile, a = uninterrupted
     b = tmp_path / "b"
