@@ -387,17 +387,7 @@ def simulate(
     plant = Plant() if plant is None else plant
     op = OperatingPoint() if op is None else op
     init = InitialEstimates() if init is None else init
-    box = getattr(controller, "projection", None)
-    if box is not None and is_concrete(init.th1, init.th2, box.lo, box.hi):
-        th0 = np.stack(
-            np.broadcast_arrays(np.asarray(init.th1), np.asarray(init.th2)), -1
-        )
-        if not box.contains(th0):
-            raise ParameterError(
-                f"initial estimates (th1, th2) = ({np.asarray(init.th1)}, "
-                f"{np.asarray(init.th2)}) are not allowed: must lie in the projection "
-                f"box [{np.asarray(box.lo).tolist()}, {np.asarray(box.hi).tolist()}]"
-            )
+    controller.check_estimates(init)
     t_end, dt_save = save.t_end, save.dt_save
     require_samples(t_end, dt_save)
     if is_concrete(fault.t_fault, fault.t_clear):

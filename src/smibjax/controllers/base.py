@@ -185,6 +185,11 @@ class AbstractController(eqx.Module):
         without the checks of `initial_internal` (by default it)."""
         return self.initial_internal(z0, plant, op, init)
 
+    def check_estimates(self, init: InitialEstimates) -> None:
+        """Raise `ParameterError` (one line) where the initial estimates, concrete
+        and of any batch shape, are not allowed for this controller; by default
+        any are."""
+
     def label(self) -> str:
         """A one-line label for titles and reports."""
         return type(self).__name__

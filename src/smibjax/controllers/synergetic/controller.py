@@ -134,6 +134,21 @@ class Synergetic(AbstractController):
             return 0.5 * (box.lo + box.hi) + zero
         return jnp.stack([init.th1 + zero, init.th2 + zero])
 
+    def check_estimates(self, init) -> None:
+        """The initial estimates (any batch shape) must lie in the projection box."""
+        box = self.projection
+        if box is None or not is_concrete(init.th1, init.th2, box.lo, box.hi):
+            return
+        th0 = np.stack(
+            np.broadcast_arrays(np.asarray(init.th1), np.asarray(init.th2)), -1
+        )
+        if not box.contains(th0):
+            raise ParameterError(
+                f"initial estimates (th1, th2) = ({np.asarray(init.th1)}, "
+                f"{np.asarray(init.th2)}) are not allowed: must lie in the projection "
+                f"box [{np.asarray(box.lo).tolist()}, {np.asarray(box.hi).tolist()}]"
+            )
+
     def label(self) -> str:
         """'AFTSC: beta = (-1, -1), alpha = 0.714' (ASC where alpha = 1)."""
         g = self.gains
