@@ -1,19 +1,20 @@
-"""Shared fixtures. JAX compiles are the slow part of this suite: runs are shared per
-session and the persistent compilation cache lives in .jax_cache/ (gitignored)."""
+"""Shared fixtures (the shared helpers are in helpers.py). JAX compiles are the slow
+part of this suite: runs are shared per session and the persistent compilation cache
+lives in .jax_cache/ (gitignored)."""
 
 import os
 import sys
 from pathlib import Path
 
-from smibjax.cli.process import configure_process
+sys.path.insert(0, str(Path(__file__).parent))
+from helpers import CACHE, STABLE  # noqa: E402
+from smibjax import configure  # noqa: E402
 
-ROOT = Path(__file__).resolve().parents[1]
-CACHE = str(ROOT / ".jax_cache")
 os.environ.setdefault("JAX_PLATFORMS", "cpu")
 # The suite is an entry point like the CLI: float64, equinox's checks as NaNs (so the
 # persistent cache in .jax_cache/ stores the simulator), one host device. Both are set
 # in the environment, not only in this process's JAX config: a test that calls a
-# command's `main()` in process runs `configure_process()` again, which reads them
+# command's `main()` in process runs `smibjax.configure()` again, which reads them
 # (without them it would move this worker's cache to ~/.cache/smibjax/jax and ask
 # the environment of later processes for one device per core).
 os.environ["SMIBJAX_CACHE_DIR"] = CACHE
@@ -21,26 +22,12 @@ if "--xla_force_host_platform_device_count" not in os.environ.get("XLA_FLAGS", "
     os.environ["XLA_FLAGS"] = (
         os.environ.get("XLA_FLAGS", "") + " --xla_force_host_platform_device_count=1"
     ).strip()
-configure_process(host_devices=False, cache_dir=CACHE)
-sys.path.insert(0, str(Path(__file__).parent))
+configure(host_devices=False, cache_dir=CACHE)
 
 import pytest  # noqa: E402
 
 import reference  # noqa: E402
 import smibjax as sj  # noqa: E402
-
-STABLE = {"beta1": -1.0, "beta2": -1.0}
-
-
-def cli_env() -> dict:
-    """The environment of the suite's command-line processes: the suite's compilation
-    cache, and one host device like this process, so that a process runs the programs
-    this one compiled (found in the cache) and gives this process's numbers."""
-    return {
-        **os.environ,
-        "SMIBJAX_CACHE_DIR": CACHE,
-        "XLA_FLAGS": "--xla_force_host_platform_device_count=1",
-    }
 
 
 def _whole_suite(config) -> bool:

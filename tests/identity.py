@@ -29,18 +29,18 @@ import numpy as np
 
 
 def capture(out: Path) -> None:
-    from smibjax.cli.process import configure_process
+    from smibjax import configure
 
-    configure_process(cache=False)
+    configure(cache=False)
     import jax
 
     import smibjax as sj
-    from smibjax.cct import critical_clearing_times
+    from smibjax._cct import critical_clearing_times
+    from smibjax._montecarlo import MonteCarloSpec, compute_chunk
+    from smibjax._scenarios import ScenarioDistribution
     from smibjax.controllers import make_controller
-    from smibjax.montecarlo import MonteCarloSpec, compute_chunk
-    from smibjax.scenarios import ScenarioDistribution
     from tuning.config import check_config, load_config
-    from tuning.driver import build
+    from tuning.problem import build
     from tuning.search import make_population_score
     from tuning.train import draw_scenarios, make_validate
 
@@ -82,7 +82,9 @@ def capture(out: Path) -> None:
         criterion="synchronism",
         **kw,
     )
-    (out / "cct.json").write_text(json.dumps({"cct": cct, "cct_avr": cct_avr}))
+    (out / "cct.json").write_text(
+        json.dumps({"cct": cct.to_dict(), "cct_avr": cct_avr.to_dict()})
+    )
     cfg = load_config(None)
     cfg.update(steps=2, batch=2, seed=3)
     cfg["validation"].update(n=4, every=2, t_end=4.0)

@@ -60,7 +60,7 @@ MUTANTS = [
     # -- the stop-gradient on step lengths (_stepping.py) --------------------------
     Mutant(
         "rigidsteps-removed",
-        "src/smibjax/simulate.py",
+        "src/smibjax/_simulate.py",
         "        RigidSteps(\n"
         "            dfx.PIDController(rtol=rtol, atol=atol, norm=_RmsDynamic(loop.n_dynamic))\n"
         "        ),",
@@ -79,17 +79,17 @@ MUTANTS = [
     # -- tuner resume ----------------------------------------------------------------
     Mutant(
         "resume-restarts",
-        "tuning/driver.py",
+        "tuning/loop.py",
         "    if resume:\n        state = load_checkpoint(out, opt, raw0)",
         "    if False:\n        state = load_checkpoint(out, opt, raw0)",
         ("tests/test_tuning.py::test_resume_trains_only_the_remaining_steps",),
         "--resume ignores the checkpoint and trains from step 0 (deterministic run: "
         "same gains and losses)",
     ),
-    # -- control law (controller.py) ------------------------------------------------
+    # -- control law (controllers/synergetic/law.py) ------------------------------
     Mutant(
         "uf-law-sign",
-        "src/smibjax/controller.py",
+        "src/smibjax/controllers/synergetic/law.py",
         "- evolution(phi1, gains.T1, a, layer)",
         "+ evolution(phi1, gains.T1, a, layer)",
         (SIM_REF,),
@@ -97,7 +97,7 @@ MUTANTS = [
     ),
     Mutant(
         "ur-law-sign",
-        "src/smibjax/controller.py",
+        "src/smibjax/controllers/synergetic/law.py",
         "- evolution(phi2, gains.T2, a, layer)",
         "+ evolution(phi2, gains.T2, a, layer)",
         (SIM_REF,),
@@ -105,7 +105,7 @@ MUTANTS = [
     ),
     Mutant(
         "uf-drift-sign",
-        "src/smibjax/controller.py",
+        "src/smibjax/controllers/synergetic/law.py",
         "b1 * f[0] + (c1 * x[1] + xdot2_hat)",
         "b1 * f[0] - (c1 * x[1] + xdot2_hat)",
         (SIM_REF,),
@@ -113,7 +113,7 @@ MUTANTS = [
     ),
     Mutant(
         "th1-law-sign",
-        "src/smibjax/controller.py",
+        "src/smibjax/controllers/synergetic/law.py",
         "gains.gamma1 * (o1 + out.x[1] * s)",
         "gains.gamma1 * (o1 - out.x[1] * s)",
         (SIM_REF,),
@@ -121,7 +121,7 @@ MUTANTS = [
     ),
     Mutant(
         "th2-law-sign",
-        "src/smibjax/controller.py",
+        "src/smibjax/controllers/synergetic/law.py",
         "gains.gamma2 * (o2 + s)",
         "gains.gamma2 * (o2 - s)",
         (SIM_REF,),
@@ -129,7 +129,7 @@ MUTANTS = [
     ),
     Mutant(
         "k1-term-sign",
-        "src/smibjax/controller.py",
+        "src/smibjax/controllers/synergetic/law.py",
         "spow(-plant.D - th_hat[0], a)",
         "spow(th_hat[0] + plant.D, a)",
         (SIM_REF,),
@@ -137,7 +137,7 @@ MUTANTS = [
     ),
     Mutant(
         "k2-term-sign",
-        "src/smibjax/controller.py",
+        "src/smibjax/controllers/synergetic/law.py",
         "spow(plant.Pm - th_hat[1], a)",
         "spow(th_hat[1] - plant.Pm, a)",
         (SIM_REF,),
@@ -146,7 +146,7 @@ MUTANTS = [
     # -- network stages (network.py) ------------------------------------------------
     Mutant(
         "stage-post-and-restored-swapped",
-        "src/smibjax/network.py",
+        "src/smibjax/_network.py",
         "jnp.where(in_fault, b, jnp.where(in_post, c, a))",
         "jnp.where(in_fault, b, jnp.where(in_post, a, c))",
         ("tests/test_network.py", SIM_REF),
@@ -154,7 +154,7 @@ MUTANTS = [
     ),
     Mutant(
         "stage-fault-until-reclose",
-        "src/smibjax/network.py",
+        "src/smibjax/_network.py",
         "in_fault = (t >= fault.t_fault) & (t < fault.t_clear)",
         "in_fault = (t >= fault.t_fault) & (t < fault.t_reclose)",
         ("tests/test_network.py", SIM_REF),
@@ -162,7 +162,7 @@ MUTANTS = [
     ),
     Mutant(
         "stage-post-never-ends",
-        "src/smibjax/network.py",
+        "src/smibjax/_network.py",
         "in_post = (t >= fault.t_clear) & (t < fault.t_reclose)",
         "in_post = t >= fault.t_clear",
         ("tests/test_network.py", SIM_REF),
@@ -171,7 +171,7 @@ MUTANTS = [
     # -- losses.py ---------------------------------------------------------------------
     Mutant(
         "soft-settling-ignores-band",
-        "src/smibjax/losses.py",
+        "src/smibjax/_losses.py",
         "s = jax.nn.sigmoid((remaining - band) / width) * after",
         "s = jax.nn.sigmoid(remaining / width) * after",
         ("tests/test_losses.py",),
@@ -179,7 +179,7 @@ MUTANTS = [
     ),
     Mutant(
         "soft-settling-ignores-stop",
-        "src/smibjax/losses.py",
+        "src/smibjax/_losses.py",
         "dev = jnp.where(t > t_stop, 10 * band, dev)",
         "dev = dev",
         ("tests/test_losses.py",),
@@ -187,7 +187,7 @@ MUTANTS = [
     ),
     Mutant(
         "overshoot-loss-from-zero",
-        "src/smibjax/losses.py",
+        "src/smibjax/_losses.py",
         "z = jnp.where(traj.t >= traj.t_fault, dev / temperature, -jnp.inf)",
         "z = dev / temperature",
         ("tests/test_losses.py",),
@@ -197,7 +197,7 @@ MUTANTS = [
     # -- metrics.py -------------------------------------------------------------------
     Mutant(
         "settling-no-interpolation",
-        "src/smibjax/metrics.py",
+        "src/smibjax/_metrics.py",
         "t_cross = t[i] + frac * (t[i + 1] - t[i])",
         "t_cross = t[i]",
         ("tests/test_metrics.py",),
@@ -205,7 +205,7 @@ MUTANTS = [
     ),
     Mutant(
         "settling-ignores-t-from",
-        "src/smibjax/metrics.py",
+        "src/smibjax/_metrics.py",
         "outside = (dev > band) & (t >= t_from)",
         "outside = dev > band",
         ("tests/test_metrics.py",),
@@ -213,7 +213,7 @@ MUTANTS = [
     ),
     Mutant(
         "settling-never-inf",
-        "src/smibjax/metrics.py",
+        "src/smibjax/_metrics.py",
         "return jnp.where(last == n - 1, jnp.inf, jnp.maximum(settled, 0.0))",
         "return jnp.maximum(settled, 0.0)",
         ("tests/test_metrics.py",),
@@ -221,7 +221,7 @@ MUTANTS = [
     ),
     Mutant(
         "stable-ignores-budget",
-        "src/smibjax/metrics.py",
+        "src/smibjax/_metrics.py",
         "traj.lost_sync | traj.budget_exhausted,",
         "traj.lost_sync,",
         ("tests/test_metrics.py::test_a_run_that_spent_its_step_budget_is_not_stable",),
@@ -229,7 +229,7 @@ MUTANTS = [
     ),
     Mutant(
         "overshoot-band-from-zero",
-        "src/smibjax/metrics.py",
+        "src/smibjax/_metrics.py",
         "return jnp.max(jnp.where(traj.t >= traj.t_fault, dev, 0.0))",
         "return jnp.max(dev)",
         ("tests/test_metrics.py",),
@@ -238,7 +238,7 @@ MUTANTS = [
     # -- domain of the model (closed_loop.py) ---------------------------------------
     Mutant(
         "e-min-check-removed",
-        "src/smibjax/closed_loop.py",
+        "src/smibjax/_closed_loop.py",
         "        & (E > E_MIN)\n",
         "",
         (
@@ -248,7 +248,7 @@ MUTANTS = [
     ),
     Mutant(
         "reactance-threshold-fault-shunt-sign",
-        "src/smibjax/closed_loop.py",
+        "src/smibjax/_closed_loop.py",
         "return (xs - X_MIN) / (plant.X1 * stage.X2) - stage.Bf",
         "return (xs - X_MIN) / (plant.X1 * stage.X2) + stage.Bf",
         (
@@ -258,7 +258,7 @@ MUTANTS = [
     ),
     Mutant(
         "reactance-check-removed",
-        "src/smibjax/closed_loop.py",
+        "src/smibjax/_closed_loop.py",
         "        & (B < b_lim)\n",
         "",
         (
@@ -270,7 +270,7 @@ MUTANTS = [
     # -- the batch engine (batch.py) and Monte Carlo run folders (cli/runs.py) ---------
     Mutant(
         "engine-structure-ignored",
-        "src/smibjax/controllers/synergetic.py",
+        "src/smibjax/controllers/synergetic/controller.py",
         "        return (self.oracle, box, float(self.phi_layer))",
         "        return ()",
         ("tests/test_batch.py::test_structure_is_part_of_the_program",),
@@ -288,7 +288,7 @@ MUTANTS = [
     ),
     Mutant(
         "one-slice-uncommitted",
-        "src/smibjax/parallel.py",
+        "src/smibjax/_parallel.py",
         "            out = single(jax.device_put(replicated, d), jax.device_put(batched, d))",
         "            out = single(replicated, batched)",
         (
@@ -298,10 +298,10 @@ MUTANTS = [
         "a one-slice batch runs on uncommitted inputs: the tuner's second step "
         "compiles its program again",
     ),
-    # -- atomic writes (cli/files.py)-----------------------------------------------------------
+    # -- atomic writes (_files.py)----------------------------------------------------------------
     Mutant(
         "io-write-in-place",
-        "src/smibjax/cli/files.py",
+        "src/smibjax/_files.py",
         "        write(tmp)\n        os.chmod(tmp, file_mode())",
         "        write(str(p))\n        os.chmod(tmp, file_mode())",
         ("tests/test_io.py",),

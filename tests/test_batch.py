@@ -1,4 +1,4 @@
-"""The batch engine (`smibjax.batch`): every batched caller's runs equal one
+"""The batch engine (`smibjax._batch`): every batched caller's runs equal one
 `simulate` + `metrics` per scenario, lanes carry their own parameter values, and the
 compiled-in structure (projection box) is part of the program's identity."""
 
@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import smibjax as sj
-from smibjax.batch import Engine, Scenarios
+from smibjax._batch import Engine, Scenarios
 from smibjax.controllers import EstimateBox, Synergetic, make_controller
 
 T_END = 2.0

@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 
 import smibjax as sj
-from conftest import STABLE
-from smibjax.cct import _islands, critical_clearing_times, scan_durations
+from helpers import STABLE
+from smibjax._cct import _islands, critical_clearing_times, scan_durations
 from smibjax.cli import main
 
 # The issue-19 case: beta = -1 under the realistic limits with realizable adaptation,
@@ -55,7 +55,7 @@ def cct(criterion, progress=None):
         adaptation="realizable",
         criterion=criterion,
         progress=progress,
-    )
+    ).to_dict()  # the JSON layout the command line writes
 
 
 def test_scan_grid_and_islands():

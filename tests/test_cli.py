@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 import smibjax as sj
-from conftest import ROOT, cli_env
+from helpers import ROOT, cli_env
 from smibjax.cli import main
 
 KEYS = [
@@ -109,14 +109,14 @@ def test_bad_input_is_one_line_and_nonzero(argv, needle, capsys):
 
 
 def test_a_command_run_in_process_keeps_the_suites_cache_and_devices(capsys):
-    """`main()` sets up its process (`configure_process`) even when a test calls it:
+    """`main()` sets up its process (`smibjax.configure`) even when a test calls it:
     it must find the suite's settings in the environment (conftest), so that this
     worker keeps compiling into .jax_cache/ (where the command-line processes of the
     suite look) and never into the user's ~/.cache, and later processes get one host
     device."""
     import jax
 
-    from conftest import CACHE
+    from helpers import CACHE
 
     assert main(["simulate", "--t-end", "x"]) == 2
     capsys.readouterr()

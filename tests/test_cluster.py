@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 
 import smibjax as sj
+from smibjax._montecarlo import MonteCarloSpec
 from smibjax.cli.runs import read_rows, run_montecarlo
-from smibjax.montecarlo import MonteCarloSpec
 
 pytest.importorskip("distributed")
 

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 import smibjax as sj
-from smibjax.closed_loop import ClosedLoop, closed_loop_vector_field, initial_state
-from smibjax.controller import evolution
+import smibjax.controllers.synergetic as syn
+from smibjax._closed_loop import ClosedLoop, closed_loop_vector_field, initial_state
 from smibjax.controllers import (
     AvrPss,
     EstimateBox,
@@ -18,6 +18,7 @@ from smibjax.controllers import (
     make_controller,
     project,
 )
+from smibjax.controllers.synergetic import evolution
 
 REALISTIC = sj.Plant.preset("realistic")
 LATE = sj.Fault(t_fault=5.0, t_clear=6.0, t_reclose=7.0)
@@ -36,11 +37,11 @@ def test_weighted_macro_variables_follow_their_evolution_law(c1, c2, layer):
     y = jnp.array([0.62, 0.4, 1.3, 0.05, -0.2, 1.0, 0.0, 0.0])
 
     def phi(yy):
-        return sj.control_law(yy[:4], yy[4:6], gains, plant, op, layer).phi
+        return syn.control_law(yy[:4], yy[4:6], gains, plant, op, layer).phi
 
     p, dphi = jax.jvp(phi, (y,), (closed_loop_vector_field(0.0, y, loop),))
     e1, e2 = 0.62 - float(op.delta_e), 0.4
-    x = sj.paper_coordinates(y[:4], plant)
+    x = syn.paper_coordinates(y[:4], plant)
     np.testing.assert_allclose(
         np.asarray(p),
         [c1 * e1 + e2 - 1.3 * (float(x[2]) - 1.0), c2 * e1 + e2 - 2.0 * float(x[3])],
@@ -56,7 +57,7 @@ def test_weighted_macro_variables_follow_their_evolution_law(c1, c2, layer):
 def test_boundary_layer_is_the_exact_law_far_from_zero_and_linear_near_it():
     a, T, eps = 5 / 7, 0.02, 0.01
     for phi in (0.5, -0.3):
-        exact = float(sj.spow(-phi / T, a))
+        exact = float(syn.spow(-phi / T, a))
         assert float(evolution(phi, T, a, eps)) == pytest.approx(exact, rel=1e-3)
     slope = jax.grad(lambda p: evolution(p, T, a, eps))(0.0)
     assert float(slope) == pytest.approx(-(eps ** (a - 1)) / T**a, rel=1e-12)
@@ -118,8 +119,8 @@ def test_avr_pss_commands_its_demand_while_the_limiter_holds_it():
     held and the command is the regulator's demand K_A (Vt_ref - Vt + v_s) beyond
     the ceiling, so the limiter shows in the time on a limit; inside the limits the
     command is the lag's state."""
-    from smibjax.network import stage_at
-    from smibjax.plant import apply_limits
+    from smibjax._network import stage_at
+    from smibjax._plant import apply_limits
 
     ctrl, plant, op = AvrPss(), REALISTIC, sj.OperatingPoint()
     fault = sj.Fault()
@@ -144,7 +145,7 @@ def test_avr_pss_limit_metrics_see_the_ceiling_on_the_paper_fault():
     as the lag states as commands, while the peak command is the exciter's demand
     (about 100 pu, not the 5 pu ceiling) and the time on a limit is at least the
     time the applied field voltage sits at its ceiling."""
-    from smibjax.metrics import metrics
+    from smibjax._metrics import metrics
 
     new = sj.simulate(AvrPss(), sj.Fault(), REALISTIC)
     old = sj.simulate(_StateAsCommand(), sj.Fault(), REALISTIC)

@@ -3,13 +3,14 @@ it, every command uses it by default, a contradicting flag wins with a warning, 
 file loads with the paper's defaults and a note, bad context is one line and exit 2."""
 
 import json
+import types
 
 import pytest
 
 import smibjax as sj
-from smibjax import gainsfile
+from smibjax import _gainsfile as gainsfile
+from smibjax._files import read_gains, read_gains_file, write_gains_file
 from smibjax.cli import main
-from smibjax.cli.files import read_gains, read_gains_file, write_gains_file
 
 STABLE = {
     k: float(getattr(sj.Gains.paper("aftsc", beta1=-1.0, beta2=-1.0), k))
@@ -22,7 +23,7 @@ REALISTIC = {"uf_min": -5.0, "uf_max": 5.0, "ur_min": -1.0, "ur_max": 1.0}
 def tuned(tmp_path):
     """A gains.json as the tuner writes it after tuning under the realistic limits
     with realizable adaptation (its writer, `_gains_file`, without the tuning)."""
-    from tuning.driver import _gains_file
+    from tuning.outputs import gains_file as _gains_file
 
     cfg = {"controller": "aftsc", "adaptation": "realizable", "preset": "realistic"}
     path = tmp_path / "run" / "gains.json"
@@ -131,7 +132,7 @@ def test_round_trip_every_command_uses_the_context(
         res["sets"] = {n: dict(per) for n in names}
         for k in per:
             res[k] = per[k] if len(names) == 1 else {n: per[k] for n in names}
-        return res
+        return types.SimpleNamespace(to_dict=lambda: res)
 
     import smibjax.cli.cct
 

@@ -22,8 +22,8 @@ import numpy as np
 import pytest
 
 import smibjax as sj
-from conftest import STABLE
-from smibjax.losses import LossWeights, scenario_loss
+from helpers import STABLE
+from smibjax._losses import LossWeights, scenario_loss
 
 T_END = 4.0
 T_CLEAR = 0.7037  # clearing off the 10 ms sample grid

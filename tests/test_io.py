@@ -9,15 +9,15 @@ import numpy as np
 import pytest
 
 import smibjax as sj
-import smibjax.cli.files as sio
-from smibjax.cli import main
-from smibjax.cli.files import (
+import smibjax._files as sio
+from smibjax._files import (
     check_new_file,
     read_table,
     write_json,
     write_npz,
     write_text,
 )
+from smibjax.cli import main
 
 
 def _only(path):

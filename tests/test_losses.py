@@ -5,7 +5,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from smibjax.losses import (
+from smibjax._losses import (
     LossWeights,
     aggregate,
     cvar,
@@ -15,7 +15,7 @@ from smibjax.losses import (
     soft_overshoot,
     soft_settling_time,
 )
-from smibjax.metrics import metrics, settling_time
+from smibjax._metrics import metrics, settling_time
 
 
 def test_soft_settling_time_of_exponential_decay():
@@ -69,7 +69,7 @@ def test_each_loss_term_is_named_once():
     bands), `loss_terms` returns exactly them, and the tuner's [loss] table takes them."""
     import dataclasses
 
-    from smibjax.losses import TERM_NAMES, TERMS, LossWeights
+    from smibjax._losses import TERM_NAMES, TERMS, LossWeights
     from tuning.config import load_config
 
     assert TERM_NAMES == tuple(TERMS)

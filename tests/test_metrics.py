@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 import reference
-from smibjax.metrics import metrics, settling_time
+from smibjax._metrics import metrics, settling_time
 
 
 def test_settling_time_of_exponential_decay():

@@ -14,18 +14,18 @@ import numpy as np
 import pytest
 
 import smibjax as sj
-from conftest import ROOT, STABLE, cli_env
-from smibjax.cct import critical_clearing_times
-from smibjax.cli import main
-from smibjax.cli.runs import read_rows, run_montecarlo
-from smibjax.montecarlo import (
+from helpers import ROOT, STABLE, cli_env
+from smibjax._cct import critical_clearing_times
+from smibjax._montecarlo import (
     COLUMNS,
     MonteCarloSpec,
     compute_chunk,
     summarize,
     wilson_interval,
 )
-from smibjax.scenarios import ScenarioDistribution, sample_scenarios
+from smibjax._scenarios import ScenarioDistribution, sample_scenarios
+from smibjax.cli import main
+from smibjax.cli.runs import read_rows, run_montecarlo
 
 T_END = 6.0  # a shorter horizon than 10 s, still long enough to settle
 GAINS = {k: float(getattr(sj.Gains.paper("aftsc", **STABLE), k)) for k in sj.GAIN_NAMES}
@@ -108,6 +108,12 @@ def test_same_rows_whatever_the_chunk_size(reference_run, tmp_path):
     back = read_rows(out / "scenarios.csv")
     for c in COLUMNS:
         np.testing.assert_array_equal(back[c], rows[c], err_msg=c)
+    # the library's own run (no run folder): its chunks joined in index order
+    res = sj.monte_carlo(spec())
+    assert isinstance(res, sj.MonteCarloResult) and res.spec == spec()
+    for c in COLUMNS:
+        np.testing.assert_array_equal(res.rows[c], rows[c], err_msg=c)
+    assert res.to_dict()["summary"] == summarize(rows)
 
 
 def test_resume_recomputes_only_missing_chunks(reference_run, tmp_path):
@@ -206,11 +212,11 @@ def test_cct_bisection_brackets_the_stability_boundary():
     sets = {"good": good, "paper": sj.Gains.paper("aftsc")}
     tol = 0.01
     res = critical_clearing_times(sets, plant, fault_locations=[0.1, 0.9], tol=tol)
-    assert res["sets"]["good"]["status"] == ["ok", "exceeds_window"]
-    assert res["sets"]["paper"]["status"] == ["unstable_at_min"] * 2
-    assert res["sets"]["paper"]["cct"] == [None, None]
-    assert res["cct"]["good"][1] is None and res["window"] == 1.5
-    cct = res["sets"]["good"]["cct"][0]
+    assert res.sets["good"].status == ["ok", "exceeds_window"]
+    assert res.sets["paper"].status == ["unstable_at_min"] * 2
+    assert res.sets["paper"].cct == [None, None]
+    assert res.to_dict()["cct"]["good"][1] is None and res.window == 1.5
+    cct = res.sets["good"].cct[0]
     assert 0.2 < cct < 1.0
 
     def stable(duration):
@@ -222,7 +228,7 @@ def test_cct_bisection_brackets_the_stability_boundary():
 
 def test_cct_solver_tolerances_reach_the_runs(monkeypatch):
     """The CCT engine's runs use the tolerances given (traced, not run)."""
-    import smibjax.batch as cct_module
+    import smibjax._batch as cct_module
 
     seen = {}
 

@@ -6,7 +6,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import smibjax as sj
-from smibjax.network import fault_stage, stage_at
+from smibjax._network import fault_stage, stage_at
 
 
 def nodal_reduction(XL, lam, Xf):

@@ -13,7 +13,7 @@ import numpy as np
 
 import smibjax as sj
 from smibjax._compat import shard_map_closure_fix
-from smibjax.parallel import device_map, shard_batch
+from smibjax._parallel import device_map, shard_batch
 
 
 def _value_and_grad():
@@ -43,8 +43,8 @@ def test_shard_batch_matches_device_map_and_one_device():
     # two, as the command-line tools and the tuner use them.
     here = Path(__file__).resolve().parent
     code = (
-        "from smibjax.cli.process import configure_process\n"
-        f"configure_process(cache_dir={str(here.parent / '.jax_cache')!r})\n"
+        "from smibjax import configure\n"
+        f"configure(cache_dir={str(here.parent / '.jax_cache')!r})\n"
         "import jax\n"
         "assert len(jax.devices()) == 2, jax.devices()\n"
         "import test_parallel\n"

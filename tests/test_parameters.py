@@ -7,7 +7,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import smibjax as sj
-from smibjax.parameters import GAIN_NAMES, PLANT_NAMES
+from smibjax._parameters import PLANT_NAMES
+from smibjax.controllers.synergetic import GAIN_NAMES
 
 
 def test_paper_defaults():

@@ -4,10 +4,9 @@ import numpy as np
 import pytest
 
 import smibjax as sj
-from smibjax.network import Stage, fault_stage, prefault_stage
-from smibjax.plant import equilibrium_state
-
-rng = np.random.default_rng(0)
+from helpers import case_rng
+from smibjax._network import Stage, fault_stage, prefault_stage
+from smibjax._plant import equilibrium_state
 
 
 def phasor(delta, E, B, X2, Bf, X1=0.3, V=1.0):
@@ -23,6 +22,7 @@ def phasor(delta, E, B, X2, Bf, X1=0.3, V=1.0):
 
 @pytest.mark.parametrize("k", range(12))
 def test_power_and_voltage_match_phasor_solution(k):
+    rng = case_rng("phasor", k)
     plant = sj.Plant()
     delta, E, B = rng.uniform(0.1, 3.0), rng.uniform(0.5, 1.5), rng.uniform(-1, 1)
     stage = [prefault_stage(plant), fault_stage(plant, 0.3, 0.02), Stage(0.4, 0.0)][
@@ -46,7 +46,7 @@ def test_operating_point_is_an_open_loop_equilibrium_with_its_field_voltage():
 def test_input_limits_hard_and_soft():
     import jax
 
-    from smibjax.plant import apply_limits
+    from smibjax._plant import apply_limits
 
     real, paper = sj.Plant.preset("realistic"), sj.Plant()
     uf, ur = apply_limits(7.0, -3.0, real)

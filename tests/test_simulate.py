@@ -7,7 +7,7 @@ import pytest
 
 import reference
 import smibjax as sj
-from conftest import STABLE
+from helpers import STABLE
 
 
 @pytest.mark.parametrize("controller", ["aftsc", "asc"])
@@ -172,7 +172,7 @@ def test_domain_thresholds_of_e_prime_and_transfer_reactance(margin, ok):
     transfer reactance of the stage in force (and of the controller's nominal
     network) falls to X_MIN: checked on each side of each threshold, in each stage of a
     bolted fault at the middle of circuit 1 (X2 = 2 XL, Bf = -1/XL in the fault)."""
-    from smibjax.closed_loop import E_MIN, X_MIN, ClosedLoop, healthy
+    from smibjax._closed_loop import E_MIN, X_MIN, ClosedLoop, healthy
 
     plant, op = sj.Plant(), sj.OperatingPoint()
     fault = sj.Fault()  # 0.5 / 0.7 / 2.0 s, lam = 0.5, Xf = 0

@@ -8,7 +8,7 @@ import pytest
 from smibjax.cli import _parser, main
 from smibjax.cli.cct import _sets
 from smibjax.controllers import Synergetic
-from smibjax.parameters import GAIN_NAMES, Gains
+from smibjax.controllers.synergetic import GAIN_NAMES, Gains
 
 
 def _one_line(capsys, needle):

@@ -93,7 +93,7 @@ def test_no_control_holds_the_operating_point():
 def test_cct_synchronism_criterion_matches_the_equal_area_criterion():
     """`critical_clearing_times(criterion="synchronism")` with no control on the
     classical model: within 2 ms of the equal-area CCT at three locations."""
-    from smibjax.cct import critical_clearing_times
+    from smibjax._cct import critical_clearing_times
 
     lams = (0.2, 0.5, 0.8)
     res = critical_clearing_times(
@@ -106,7 +106,7 @@ def test_cct_synchronism_criterion_matches_the_equal_area_criterion():
         tol=5e-4,
         criterion="synchronism",
     )
-    got = res["sets"]["none"]["cct"]
+    got = res.sets["none"].cct
     want = [equal_area_cct(lam)[0] for lam in lams]
-    assert res["sets"]["none"]["status"] == ["ok"] * 3
+    assert res.sets["none"].status == ["ok"] * 3
     np.testing.assert_allclose(got, want, atol=2e-3)

@@ -11,12 +11,13 @@ import numpy as np
 import pytest
 
 import smibjax as sj
-from conftest import cli_env
+from helpers import cli_env
 from smibjax.cli import main as smibjax_main
 from tuning.config import check_config, load_config
-from tuning.driver import build, run
+from tuning.loop import run
 from tuning.optimize import main
 from tuning.params import GainSpace, gains_to_dict
+from tuning.problem import build
 from tuning.train import draw_scenarios, make_train_step
 
 PAPER = gains_to_dict(sj.Gains())
@@ -275,11 +276,11 @@ def test_resume_trains_only_the_remaining_steps(tmp_path, monkeypatch, uninterru
     byte (their wall-clock `seconds` too: a restart would recompute them), and ends
     where the uninterrupted run of the command's `main()` ends (the run is
     deterministic, so that alone could not tell a resume from a restart)."""
-    import tuning.driver as optimize
-    from tuning.driver import finish
+    import tuning.problem as problem_module
+    from tuning.outputs import finish
 
     trained = []
-    engine = optimize._engine
+    engine = problem_module.engine
 
     def counting_engine(cfg, setup):
         step, validate = engine(cfg, setup)
@@ -290,18 +291,20 @@ def test_resume_trains_only_the_remaining_steps(tmp_path, monkeypatch, uninterru
 
         return counted, validate
 
-    monkeypatch.setattr(optimize, "_engine", counting_engine)
+    monkeypatch.setattr(problem_module, "engine", counting_engine)
     cfg = tiny_config()
     part = run(cfg, tmp_path / "b", quiet=True, stop_after=2)  # "killed" after step 2
-    assert part["step"] == 2 and (tmp_path / "b" / "checkpoint.pkl").is_file()
+    assert part.step == 2 and (tmp_path / "b" / "checkpoint.eqx").is_file()
+    sidecar = json.loads((tmp_path / "b" / "checkpoint.json").read_text())
+    assert sidecar["step"] == 2 and sidecar["history"] == part.history
     assert len(trained) == 2
     rows_before = (tmp_path / "b" / "history.csv").read_bytes().splitlines()
-    history_before = copy.deepcopy(part["history"])
+    history_before = copy.deepcopy(part.history)
     assert len(rows_before) == 3  # header and steps 1, 2
     resumed = run(cfg, tmp_path / "b", resume=True, quiet=True)
     assert len(trained) == 4  # only steps 3 and 4
-    assert [r["step"] for r in resumed["history"]] == [1, 2, 3, 4]
-    assert resumed["history"][:2] == history_before
+    assert [r["step"] for r in resumed.history] == [1, 2, 3, 4]
+    assert resumed.history[:2] == history_before
     rows_after = (tmp_path / "b" / "history.csv").read_bytes().splitlines()
     assert rows_after[:3] == rows_before and len(rows_after) == 5
     finish(cfg, tmp_path / "b", resumed)
@@ -329,7 +332,8 @@ def test_end_to_end_run_writes_outputs_usable_by_simulate(uninterrupted, capsys)
         "history.png",
         "settling_hist.png",
         "trajectories.png",
-        "checkpoint.pkl",
+        "checkpoint.eqx",
+        "checkpoint.json",
     ):
         assert (out / name).stat().st_size > 0, name
     gains = json.loads((out / "gains.json").read_text())
@@ -365,7 +369,7 @@ def test_avr_pss_tunes_its_own_parameters(tmp_path):
     """The conventional baseline trains its own fields (tuning/configs/avr_pss.toml's
     bounds), writes them as its gains file, and its report names none of the paper's
     law's options (adaptation, boundary layer, estimates)."""
-    from conftest import ROOT
+    from helpers import ROOT
     from smibjax.controllers import AvrPss
 
     cfgfile = tmp_path / "tiny.toml"
@@ -396,7 +400,7 @@ def test_kill_9_then_resume_matches_an_uninterrupted_run(tmp_path, uninterrupted
     import subprocess
     import time
 
-    from conftest import ROOT
+    from helpers import ROOT
 
     cfgfile, a = uninterrupted
     b = tmp_path / "b"
@@ -476,9 +480,9 @@ def test_search_warm_start_end_to_end(tmp_path):
     cfg = tiny_config(steps=0)
     cfg["search"].update(generations=1, population=3, elite=1, batch=2)
     state = run(cfg, tmp_path)
-    hist = state["search"]
+    hist = state.search
     assert len(hist) == 1 and hist[0]["best_score"] <= hist[0]["mean_score"]
-    from tuning.driver import finish
+    from tuning.outputs import finish
 
     finish(cfg, tmp_path, state)
     assert "Gradient-free warm start" in (tmp_path / "report.md").read_text()
@@ -488,7 +492,7 @@ def test_model_selection_is_most_stable_then_fastest():
     """The kept gains (gains.json) are the validation's best: the larger stable
     fraction first, then the shorter mean settling; a summary whose settling is
     not a number (nothing stable) never wins a tie."""
-    from tuning.driver import _better
+    from tuning.loop import _better
 
     def v(stable, ts):
         return {"stable_fraction": stable, "settling_delta_mean": ts}

@@ -11,7 +11,7 @@ import pytest
 import smibjax as sj
 from test_tuning import tiny_toml
 from tuning.config import load_config
-from tuning.driver import CHECKPOINT
+from tuning.loop import CHECKPOINT
 from tuning.optimize import main
 from tuning.resume import SESSIONS, SessionClock, first_difference, start_mode
 
@@ -95,6 +95,18 @@ def test_start_mode(tmp_path, capsys):
     with pytest.raises(sj.ParameterError, match="no checkpoint"):
         start_mode(tmp_path / "none", cfg, True, CHECKPOINT)
     assert start_mode(tmp_path / "new", cfg, False, CHECKPOINT) is False
+
+
+def test_an_old_pickle_checkpoint_is_one_clear_line(tmp_path, capsys):
+    """A run folder of the older tuner (checkpoint.pkl) is refused by --resume with
+    one line naming the file, not started afresh and not unpickled."""
+    out, _, cfgfile = _saved_run(tmp_path)
+    (out / "checkpoint.pkl").write_bytes(b"\x80\x04not a pickle to load")
+    argv = ["--config", str(cfgfile), "--out", str(out), "--quiet", "--resume"]
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "checkpoint of an older tuner" in err
+    assert "checkpoint.pkl" in err and not (out / "gains.json").exists()
 
 
 def test_run_killed_before_its_first_checkpoint_can_be_finished(tmp_path, capsys):

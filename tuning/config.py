@@ -16,8 +16,8 @@ _FREE_TABLES = {("gains", "bounds")}
 
 
 def load_toml(path: str | Path) -> dict:
-    """A configuration table from a TOML file (the one reader, `smibjax.cli.files`)."""
-    from smibjax.cli.files import read_data
+    """A configuration table from a TOML file (the one reader, `smibjax._files`)."""
+    from smibjax._files import read_data
 
     if Path(path).suffix.lower() != ".toml":
         raise ParameterError(f"config file {str(path)!r} is not allowed: must be .toml")

@@ -6,17 +6,19 @@ fault scenarios; checkpoints, resume, report.
         [--controller aftsc|asc|avr-pss] [--adaptation oracle|realizable] [--quiet]
 
 This module is the command line only: it configures the process (host devices,
-float64, equinox's error mode, the compilation cache; `smibjax.cli.process`) before
-JAX loads, then runs `tuning.driver`.
+float64, equinox's error mode, the compilation cache; `smibjax.configure`) before
+JAX loads, then builds the problem (`tuning.problem`), runs the loop
+(`tuning.loop`) and writes the outputs (`tuning.outputs`).
 """
 
 from __future__ import annotations
 
+import dataclasses
 import sys
 import time
 from pathlib import Path
 
-from smibjax.cli.options import CLIError, Parser, fresh_out
+from smibjax._commandline import CLIError, Parser, fresh_out
 
 __all__ = ["main", "parse_args"]
 
@@ -57,13 +59,15 @@ def resolve_config(args) -> dict:
 
 
 def main(argv=None) -> int:
-    from smibjax.cli.process import configure_process
+    from smibjax import configure
 
-    configure_process()
-    from smibjax.cli.files import write_json
-    from smibjax.parameters import ParameterError
+    configure()
+    from smibjax import ParameterError
+    from smibjax._files import write_json
 
-    from .driver import CHECKPOINT, UsageError, build, finish, run
+    from .loop import CHECKPOINT, run
+    from .outputs import finish
+    from .problem import UsageError, build
     from .resume import SessionClock, start_mode
 
     try:
@@ -79,12 +83,13 @@ def main(argv=None) -> int:
             write_json(out / "config.json", cfg)
         clock, t0 = SessionClock(out, args.resume), time.perf_counter()
         state = run(cfg, out, resume=resume, quiet=args.quiet)
-        total, state["wall_sessions"] = clock.finish(time.perf_counter() - t0)
-        state["wall_seconds"] = total  # all sessions of the run
+        total, sessions = clock.finish(time.perf_counter() - t0)
+        # the wall time of all sessions of the run
+        state = dataclasses.replace(state, wall_seconds=total, wall_sessions=sessions)
         finish(cfg, out, state)
         print(
             f"wrote {out}/gains.json, report.md, history.csv and plots "
-            f"({state['wall_seconds']:.0f} s)"
+            f"({state.wall_seconds:.0f} s)"
         )
         return 0
     except (CLIError, UsageError, ParameterError) as e:

@@ -9,8 +9,9 @@ import jax
 import numpy as np
 
 import smibjax as sj
-from smibjax.cli.files import write_text
-from smibjax.cli.plotting import save_figure, subplots
+from smibjax._figures import save_figure, subplots
+from smibjax._files import write_text
+from smibjax.controllers import CONTROLLERS
 
 from .params import gains_to_dict
 from .train import with_damping
@@ -81,9 +82,9 @@ def _fmt(x):
     return "-" if x is None or (isinstance(x, float) and math.isnan(x)) else f"{x:.3f}"
 
 
-def _search_lines(cfg: dict, state: dict) -> list[str]:
+def _search_lines(cfg: dict, state) -> list[str]:
     """The gradient-free warm start, if the config ran one."""
-    hist = state.get("search") or []
+    hist = state.search
     if not hist:
         return []
     sc = cfg["search"]
@@ -131,7 +132,7 @@ def _train_solver(setup) -> str:
 
 def _paper_fault_lines(tr, setup) -> list[str]:
     """The tuned controller on the paper's fault: its physics, in one table."""
-    from smibjax.metrics import metrics
+    from smibjax import metrics
 
     m = metrics(tr)
     after = np.asarray(tr.t) >= float(tr.t_fault) + 0.2
@@ -181,19 +182,17 @@ def _paper_fault_lines(tr, setup) -> list[str]:
     ]
 
 
-def write_report(
-    cfg: dict, out: Path, state: dict, problem, validate, val_scenarios
-) -> None:
-    """report.md and the plots of a finished run: `state` (the driver's data),
-    `problem` (`tuning.driver.Problem`), `validate` (raw -> (summary, metrics)) and
+def write_report(cfg: dict, out: Path, state, problem, validate, val_scenarios) -> None:
+    """report.md and the plots of a finished run: `state` (`tuning.loop.TrainState`),
+    `problem` (`tuning.problem.Problem`), `validate` (raw -> (summary, metrics)) and
     the validation scenarios (faults, D)."""
     space, setup = problem.space, problem.setup
     raw0 = space.to_raw(problem.init)
-    best = state["best"]
-    g0, g1 = space.to_gains(raw0), space.to_gains(best["raw"])
+    best = state.best
+    g0, g1 = space.to_gains(raw0), space.to_gains(best.raw)
     v0s, m0 = validate(raw0)
-    v1s, m1 = validate(best["raw"])
-    plot_history(out, state["history"], state["validation"])
+    v1s, m1 = validate(best.raw)
+    plot_history(out, state.history, state.validation)
     plot_hist(out, m0, m1)
     # representative scenarios: the paper's fault, the median and worst tuned ones
     ts = np.where(np.asarray(m1.stable), np.asarray(m1.settling_delta), np.inf)
@@ -221,7 +220,7 @@ def write_report(
                 setup.controller_of(g),
                 f,
                 with_damping(setup.plant, d),
-                t_end=setup.val_t_end,
+                save=sj.SaveOptions(t_end=setup.val_t_end),
             )
             for label, g in (("initial", g0), ("tuned", g1))
         }
@@ -253,7 +252,8 @@ def write_report(
         return _fmt(v[k]) if not k2 else f"{_fmt(v[k])} .. {_fmt(v[k2])}"
 
     n_val = int(cfg["validation"]["n"])
-    synergetic = isinstance(g0, sj.Gains)  # the paper's law (adaptation, options)
+    # the paper's law (adaptation, options)
+    synergetic = CONTROLLERS[cfg["controller"]].has_adaptation
     md = [
         "# Tuning report",
         "",
@@ -269,23 +269,23 @@ def write_report(
             if setup.phi_layer and synergetic
             else ""
         )
-        + f"; true damping D {_d_range(cfg)}; {state['step']} steps of batch "
+        + f"; true damping D {_d_range(cfg)}; {state.step} steps of batch "
         f"{cfg['batch']} (seed {cfg['seed']}), start `{cfg['init']}`."
         + (
-            f" Wall time {state['wall_seconds']:.0f} s"
+            f" Wall time {state.wall_seconds:.0f} s"
             + (
-                f" (sum over {state['wall_sessions']} sessions)."
-                if state.get("wall_sessions", 1) > 1
+                f" (sum over {state.wall_sessions} sessions)."
+                if state.wall_sessions > 1
                 else "."
             )
-            if "wall_seconds" in state
+            if state.wall_seconds is not None
             else ""
         ),
         "",
         *_search_lines(cfg, state),
         "## Exact validation metrics",
         "",
-        f"`gains.json` holds the gains of the best validation (step {best['step']}: "
+        f"`gains.json` holds the gains of the best validation (step {best.step}: "
         "most stable scenarios, then fastest mean settling); `gains_last.json` those "
         "of the last step.",
         "",
@@ -328,7 +328,7 @@ def write_report(
         + ", smooth surrogate losses; gradients of this path match central finite "
         "differences (tests/test_gradients.py, tests/test_losses.py).",
         f"- Validation: Tsit5 with adaptive steps (rtol 1e-6, atol 1e-8), horizon "
-        f"{setup.val_t_end:g} s, hard input limits, exact metrics (MODEL.md section 4).",
+        f"{setup.val_t_end:g} s, hard input limits, exact metrics (docs/model.md section 4).",
         "",
         "![history](history.png)",
         "![settling](settling_hist.png)",

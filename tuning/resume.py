@@ -20,11 +20,18 @@ import time
 from pathlib import Path
 
 from smibjax import ParameterError
-from smibjax.cli.files import write_json
+from smibjax._files import write_json
 
-__all__ = ["start_mode", "first_difference", "SessionClock", "SESSIONS"]
+__all__ = [
+    "start_mode",
+    "first_difference",
+    "SessionClock",
+    "SESSIONS",
+    "OLD_CHECKPOINT",
+]
 
 CONFIG = "config.json"
+OLD_CHECKPOINT = "checkpoint.pkl"  # the older tuner's pickle: not read
 SESSIONS = "sessions.json"
 
 
@@ -84,6 +91,12 @@ def start_mode(out: Path, cfg: dict, resume: bool, checkpoint: str) -> bool:
         raise ParameterError(
             f"--resume: {key} = {new!r} differs from the run in {str(out)!r} "
             f"({key} = {old!r}); repeat its options"
+        )
+    if not (out / checkpoint).is_file() and (out / OLD_CHECKPOINT).is_file():
+        raise ParameterError(
+            f"--resume: {str(out / OLD_CHECKPOINT)!r} is a checkpoint of an older "
+            "tuner (pickle), which this one does not read: start the run afresh in "
+            "a new folder"
         )
     if not (out / checkpoint).is_file():
         print(

@@ -18,7 +18,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from smibjax.batch import Scenarios
+from smibjax import Scenarios
 
 __all__ = ["make_population_score", "cross_entropy_search"]
 

@@ -3,8 +3,8 @@
 One call evaluates a whole batch of fault scenarios: `jax.vmap` over the scenarios,
 split over the host devices (one per core), so every core integrates its own slice
 with its own solver loop: the value-and-grad as one `shard_map` program
-(`smibjax.parallel.shard_batch`, compiled once), the forward losses and the
-validation by `smibjax.parallel.device_map`.
+(`smibjax._parallel.shard_batch`, compiled once), the forward losses and the
+validation by `smibjax._parallel.device_map`.
 """
 
 from __future__ import annotations
@@ -19,11 +19,18 @@ import numpy as np
 import optax
 
 import smibjax as sj
-from smibjax.batch import Engine, Scenarios
-from smibjax.controllers import AbstractController, EstimateBox, Synergetic
-from smibjax.losses import LossWeights, aggregate, loss_terms, scenario_loss
-from smibjax.metrics import physics_summary
-from smibjax.parallel import device_map, shard_batch
+from smibjax import (
+    Engine,
+    LossWeights,
+    Scenarios,
+    aggregate,
+    device_map,
+    loss_terms,
+    physics_summary,
+    scenario_loss,
+    shard_batch,
+)
+from smibjax.controllers import AbstractController, EstimateBox, as_controller
 
 from .params import GainSpace
 
@@ -60,14 +67,10 @@ class Setup:
 
     def controller_of(self, params) -> AbstractController:
         """The controller with parameter set `params` (`space.to_gains(raw)`)."""
-        if isinstance(params, sj.Gains):
-            return Synergetic(
-                params,
-                oracle=self.adaptation == "oracle",
-                projection=self.projection,
-                phi_layer=self.phi_layer,
-            )
-        return params
+        if isinstance(params, AbstractController):
+            return params
+        options = {"projection": self.projection, "phi_layer": self.phi_layer}
+        return as_controller(params, self.adaptation, options)
 
 
 def scaled_limits(plant: sj.Plant, scale) -> sj.Plant:
@@ -94,7 +97,7 @@ def draw_scenarios(key, n: int, dist, plant: sj.Plant):
     """`n` scenarios from `key`: a batched `Fault` (drawn exactly as
     `sample_faults(key, n, dist.faults)`) and the true damping D of each (uniform in
     `dist.D` from an independent key, or the plant's D where not drawn)."""
-    from smibjax.scenarios import sample_faults
+    from smibjax import sample_faults
 
     faults = sample_faults(key, n, dist.faults)
     if dist.D is None:
@@ -113,19 +116,24 @@ def train_run(s: Setup, raw, fault: sj.Fault, D=None, scale=1.0) -> sj.Trajector
     plant = s.plant if D is None else with_damping(s.plant, D)
     plant = scaled_limits(plant, scale)
     if s.train_solver == "adaptive":
-        options = dict(
-            rtol=s.train_rtol, atol=s.train_atol, max_steps=s.train_max_steps
+        solver = sj.SolverOptions(
+            "adaptive",
+            rtol=s.train_rtol,
+            atol=s.train_atol,
+            max_steps=s.train_max_steps,
+            checkpoints=s.train_checkpoints,
         )
     else:
-        options = dict(solver="fixed", dt=s.train_dt)
+        solver = sj.SolverOptions(
+            "fixed", dt=s.train_dt, checkpoints=s.train_checkpoints
+        )
     return sj.simulate(
         s.controller_of(s.space.to_gains(raw)),
         fault,
         plant,
-        t_end=s.train_t_end,
+        solver=solver,
+        save=sj.SaveOptions(t_end=s.train_t_end),
         input_smoothing=s.input_smoothing,
-        checkpoints=s.train_checkpoints,
-        **options,
     )
 
 
@@ -182,7 +190,7 @@ class StepInfo(NamedTuple):
 
     loss: jax.Array  # the batch aggregate (mean + tail_weight CVaR)
     per_scenario: jax.Array  # each scenario's loss
-    terms: dict  # each named loss term, per scenario (`smibjax.losses.TERMS`)
+    terms: dict  # each named loss term, per scenario (`smibjax._losses.TERMS`)
     stable: jax.Array  # each scenario's stability (training solver)
     grad_norm: float  # global norm of the batch gradient, before clipping
     dropped: int  # scenarios left out for a non-finite gradient

@@ -1,123 +1,112 @@
 """smibjax: a differentiable simulator of a single-machine-infinite-bus power system
 with a static var compensator under adaptive (finite-time) synergetic control.
 
+The names below are the public API; the modules that define them are private
+(`smibjax._simulate`, ...), except the subpackages `smibjax.controllers` (the
+controller interface, the registry and the paper's law, `controllers.synergetic`)
+and `smibjax.cli` (the command line).
+
 Importing smibjax changes nothing in your process: it sets no JAX option, no
 environment variable and no matplotlib backend, and it loads its modules (and JAX)
 only when a name is first used. smibjax needs JAX's 64-bit mode (the closed loop is
 stiff and the finite-time law works near phi = 0, where float32 is not enough); set
-it before you create any array:
+it before you create any array, or let `configure` set it with the rest of what the
+command line sets up (host devices, the compilation cache):
 
-    import jax
-    jax.config.update("jax_enable_x64", True)
     import smibjax as sj
+    sj.configure()  # or: jax.config.update("jax_enable_x64", True)
 
-`sj.simulate` refuses to run without it. The command line and the tuner set it, and
-more, themselves (`smibjax.cli.process.configure_process`).
+`sj.simulate` refuses to run without it.
 """
 
 from __future__ import annotations
 
+import ast
 import importlib
-import sys
-import types
+from pathlib import Path
 from typing import TYPE_CHECKING
 
 __version__ = "0.1.0"
 
-# public name -> the module that defines it
-_EXPORTS = {
-    "ClosedLoop": "closed_loop",
-    "closed_loop_vector_field": "closed_loop",
-    "initial_state": "closed_loop",
-    "adaptation_rate": "controller",
-    "control_law": "controller",
-    "drift_and_gain": "controller",
-    "drift_and_gain_closed_form": "controller",
-    "paper_coordinates": "controller",
-    "spow": "controller",
-    "Metrics": "metrics",
-    "metrics": "metrics",
-    "Stage": "network",
-    "fault_stage": "network",
-    "stage_at": "network",
-    "FAULT_NAMES": "parameters",
-    "GAIN_NAMES": "parameters",
-    "PLANT_NAMES": "parameters",
-    "Fault": "parameters",
-    "Gains": "parameters",
-    "InitialEstimates": "parameters",
-    "OperatingPoint": "parameters",
-    "ParameterError": "parameters",
-    "Plant": "parameters",
-    "electrical_power": "plant",
-    "plant_vector_field": "plant",
-    "terminal_voltage": "plant",
-    "Trajectory": "simulate",
-    "simulate": "simulate",
-    "Engine": "batch",
-    "Scenarios": "batch",
-    "Outcome": "batch",
-}
+if TYPE_CHECKING:  # the public names; loaded on first use (`__getattr__`)
+    from ._batch import Engine as Engine
+    from ._batch import Outcome as Outcome
+    from ._batch import Scenarios as Scenarios
+    from ._cct import CCTResult as CCTResult
+    from ._cct import critical_clearing_times as critical_clearing_times
+    from ._closed_loop import ClosedLoop as ClosedLoop
+    from ._closed_loop import closed_loop_vector_field as closed_loop_vector_field
+    from ._closed_loop import initial_state as initial_state
+    from ._gainsfile import GainsFile as GainsFile
+    from ._losses import TERM_NAMES as TERM_NAMES
+    from ._losses import LossWeights as LossWeights
+    from ._losses import aggregate as aggregate
+    from ._losses import loss_terms as loss_terms
+    from ._losses import scenario_loss as scenario_loss
+    from ._metrics import Metrics as Metrics
+    from ._metrics import metrics as metrics
+    from ._metrics import physics_summary as physics_summary
+    from ._montecarlo import MonteCarloResult as MonteCarloResult
+    from ._montecarlo import MonteCarloSpec as MonteCarloSpec
+    from ._montecarlo import monte_carlo as monte_carlo
+    from ._network import Stage as Stage
+    from ._network import fault_stage as fault_stage
+    from ._network import stage_at as stage_at
+    from ._options import SaveOptions as SaveOptions
+    from ._options import SolverOptions as SolverOptions
+    from ._parallel import device_map as device_map
+    from ._parallel import shard_batch as shard_batch
+    from ._parameters import FAULT_NAMES as FAULT_NAMES
+    from ._parameters import PLANT_NAMES as PLANT_NAMES
+    from ._parameters import Fault as Fault
+    from ._parameters import InitialEstimates as InitialEstimates
+    from ._parameters import OperatingPoint as OperatingPoint
+    from ._parameters import ParameterError as ParameterError
+    from ._parameters import Plant as Plant
+    from ._plant import electrical_power as electrical_power
+    from ._plant import plant_vector_field as plant_vector_field
+    from ._plant import terminal_voltage as terminal_voltage
+    from ._process import configure as configure
+    from ._scenarios import ScenarioDistribution as ScenarioDistribution
+    from ._scenarios import sample_faults as sample_faults
+    from ._scenarios import sample_scenarios as sample_scenarios
+    from ._simulate import Trajectory as Trajectory
+    from ._simulate import simulate as simulate
+    from .controllers import AbstractController as AbstractController
+    from .controllers import AvrPss as AvrPss
+    from .controllers import NoControl as NoControl
+    from .controllers import Synergetic as Synergetic
+    from .controllers import make_controller as make_controller
+    from .controllers.synergetic import GAIN_NAMES as GAIN_NAMES
+    from .controllers.synergetic import EstimateBox as EstimateBox
+    from .controllers.synergetic import Gains as Gains
 
-if TYPE_CHECKING:  # for type checkers and documentation tools
-    from .batch import Engine, Outcome, Scenarios
-    from .closed_loop import ClosedLoop, closed_loop_vector_field, initial_state
-    from .controller import (
-        adaptation_rate,
-        control_law,
-        drift_and_gain,
-        drift_and_gain_closed_form,
-        paper_coordinates,
-        spow,
-    )
-    from .metrics import Metrics, metrics
-    from .network import Stage, fault_stage, stage_at
-    from .parameters import (
-        FAULT_NAMES,
-        GAIN_NAMES,
-        PLANT_NAMES,
-        Fault,
-        Gains,
-        InitialEstimates,
-        OperatingPoint,
-        ParameterError,
-        Plant,
-    )
-    from .plant import electrical_power, plant_vector_field, terminal_voltage
-    from .simulate import Trajectory, simulate
+
+def _exports() -> dict[str, str]:
+    """public name -> defining module, read from the `TYPE_CHECKING` block above
+    (one list of the public names, for type checkers, documentation tools and this
+    lazy loader alike)."""
+    tree = ast.parse(Path(__file__).read_text(encoding="utf-8"))
+    block = next(n for n in tree.body if isinstance(n, ast.If))
+    return {a.asname: n.module for n in block.body for a in n.names}
+
+
+_EXPORTS = _exports()
+__all__ = sorted(_EXPORTS)
 
 
 def __getattr__(name: str):
-    """Load a public name (or a submodule, `sj.controllers`) on first use."""
+    """Load a public name on first use (PEP 562); modules load only then, so
+    `import smibjax` imports neither JAX nor equinox."""
     if name in _EXPORTS:
-        value = getattr(importlib.import_module(f".{_EXPORTS[name]}", __name__), name)
+        module = importlib.import_module(f".{_EXPORTS[name]}", __name__)
+        value = getattr(module, name)
         globals()[name] = value
         return value
-    try:
+    if name in ("controllers", "cli", "grid"):
         return importlib.import_module(f".{name}", __name__)
-    except ModuleNotFoundError as e:
-        if e.name != f"{__name__}.{name}":
-            raise
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}") from None
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 def __dir__() -> list[str]:
     return sorted([*globals(), *_EXPORTS])
-
-
-class _Package(types.ModuleType):
-    """The package module. When a submodule loads, the import system binds it as an
-    attribute of its package; where a public function has the submodule's name
-    (`smibjax.simulate`, `smibjax.metrics`), the function is bound instead, so that
-    `sj.simulate(...)` works whichever was loaded first."""
-
-    def __setattr__(self, name, value):
-        if isinstance(value, types.ModuleType) and _EXPORTS.get(name) == name:
-            value = getattr(value, name)
-        super().__setattr__(name, value)
-
-
-sys.modules[__name__].__class__ = _Package
-
-
-__all__ = sorted(_EXPORTS)

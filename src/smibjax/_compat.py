@@ -7,7 +7,7 @@ called with arguments of the types it was traced with, comparing shardings too. 
 its traced example has none, and the check rejects a call that is otherwise identical
 (diffrax issue #765; equinox pull request #1261, open, makes the check ignore sharding
 metadata). `shard_map_closure_fix` applies that change while the one call that needs it runs
-(`smibjax.parallel.shard_batch`, the tuner's sharded value-and-grad), and only on the
+(`smibjax._parallel.shard_batch`, the tuner's sharded value-and-grad), and only on the
 equinox versions it was checked against (`CHECKED`); on any other version it changes
 nothing and warns once (if the upstream fix has landed, nothing is needed; if not,
 the sharded call fails with equinox's own error, and `CHECKED` is the place to look).

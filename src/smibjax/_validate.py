@@ -2,7 +2,7 @@
 
 Parameter sets are checked only on concrete values: inside `jax.jit` or `jax.vmap`
 their leaves are tracers and validation is skipped (it already happened when the
-concrete values were built); `smibjax.parameters` decides that with `is_concrete`.
+concrete values were built); `smibjax._parameters` decides that with `is_concrete`.
 """
 
 from __future__ import annotations

@@ -9,7 +9,7 @@ Carlo run folders and resume), `cluster` (Dask), `plotting` and `report`.
 
 Bad input ends with one line on stderr (`smibjax: error: ...`) and exit status 2; no
 traceback. Importing this package loads neither JAX nor equinox: `main` configures
-the process first (`process.configure_process`).
+the process first (`smibjax.configure`).
 """
 
 from __future__ import annotations
@@ -53,10 +53,10 @@ def run() -> None:
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point; returns the exit status."""
-    from .process import configure_process
+    from .._process import configure
 
-    configure_process()
-    from ..parameters import ParameterError
+    configure()
+    from .._parameters import ParameterError
     from .options import CLIError, one_line
 
     args = None

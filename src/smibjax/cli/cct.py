@@ -3,8 +3,8 @@ table on stdout and (with --out) a JSON file and its plot."""
 
 from __future__ import annotations
 
-from ..cct import check_options, critical_clearing_times, lane_kind
-from .files import check_new_file, write_json
+from .._cct import check_options, critical_clearing_times, lane_kind
+from .._files import check_new_file, write_json
 from .options import (
     CLIError,
     add_common,
@@ -101,7 +101,7 @@ def _sets(args):
 
 def run_grouped(args, sets, plant, op, init, progress=None) -> dict:
     """`critical_clearing_times` with the CCT options of `args`, once per kind of
-    controller (`smibjax.cct.lane_kind`), merged in the order of `sets`; `progress`:
+    controller (`smibjax._cct.lane_kind`), merged in the order of `sets`; `progress`:
     a factory of one progress callback per call (e.g. `progress_bar`)."""
     from .compare import merge_cct
 
@@ -127,7 +127,7 @@ def run_grouped(args, sets, plant, op, init, progress=None) -> dict:
             rtol=args.rtol,
             atol=args.atol,
             progress=progress() if progress else None,
-        )
+        ).to_dict()
         for g in groups.values()
     ]
     return results[0] if len(results) == 1 else merge_cct(results, list(sets))

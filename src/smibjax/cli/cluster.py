@@ -35,8 +35,8 @@ import json
 import os
 from collections.abc import Iterable, Iterator
 
-from ..montecarlo import MonteCarloSpec, compute_chunk
-from ..parameters import ParameterError
+from .._montecarlo import MonteCarloSpec, compute_chunk
+from .._parameters import ParameterError
 
 __all__ = ["DaskRunner", "dask_runner", "chunk_key", "worker_env"]
 
@@ -97,10 +97,10 @@ def _setup_worker() -> None:
     its parent's main module, before the nanny sets the worker's environment)."""
     import jax
 
-    from .process import configure_process
+    from .._process import configure
 
     cache = os.environ.get("JAX_COMPILATION_CACHE_DIR")
-    configure_process(
+    configure(
         host_devices=False,
         cache=bool(cache) and not jax.config.jax_compilation_cache_dir,
         cache_dir=cache,

@@ -17,9 +17,10 @@ from pathlib import Path
 
 import numpy as np
 
-from ..gainsfile import Context, resolve
-from ..parameters import GAIN_NAMES, Gains, ParameterError
-from .files import read_gains_file, write_json, write_text
+from .._files import read_gains_file, write_json, write_text
+from .._gainsfile import Context, resolve
+from .._parameters import ParameterError
+from ..controllers.synergetic import GAIN_NAMES, Gains
 
 __all__ = [
     "BUILTIN_SETS",
@@ -32,7 +33,7 @@ __all__ = [
     "run",
 ]
 
-# Built-in gain sets: the paper's (which lose synchronism, MODEL.md section 2) and
+# Built-in gain sets: the paper's (which lose synchronism, docs/model.md section 2) and
 # beta1 = beta2 = -1, the sign-corrected choice that stabilizes the loop.
 BUILTIN_SETS = {
     "paper": ("aftsc", {}),
@@ -47,11 +48,9 @@ BUILTIN_SETS = {
 def _parameters(controller: str, values: dict):
     """The parameter set of `controller`: the paper's `Gains` for aftsc/asc (the
     controller's alpha), the controller itself otherwise."""
-    from ..controllers import CONTROLLERS, Synergetic, make_controller
+    from ..controllers import parameter_set
 
-    if CONTROLLERS[controller] is Synergetic:
-        return Gains.paper(controller, **values)
-    return make_controller(controller, values)
+    return parameter_set(controller, values)
 
 
 def resolve_gain_set_context(
@@ -99,7 +98,7 @@ def context_text(ctx: dict) -> tuple[str, str, str]:
     is its preset plus any field the file overrides, e.g. 'realistic (uf_max=3)'."""
     plant = dict(ctx["plant"])
     preset = plant.pop("preset")
-    from ..parameters import PRESETS
+    from .._parameters import PRESETS
 
     base = PRESETS[preset]
     extra = [

@@ -7,9 +7,9 @@ import contextlib
 import sys
 from pathlib import Path
 
+from .._montecarlo import MonteCarloSpec
+from .._parameters import PLANT_NAMES, ParameterError
 from ..controllers import describe
-from ..montecarlo import MonteCarloSpec
-from ..parameters import PLANT_NAMES, ParameterError
 from .options import (
     CLIError,
     add_common,

@@ -10,26 +10,23 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import datetime
 import math
-import re
 import sys
-from pathlib import Path
 
-from ..controllers import CONTROLLERS, Synergetic, make_controller
-from ..gainsfile import Context, resolve, synergetic_options
-from ..parameters import (
-    GAIN_NAMES,
+from .._commandline import CLIError, Parser, fresh_out, one_line
+from .._files import read_data, read_gains, read_gains_file
+from .._gainsfile import Context, resolve
+from .._options import SolverOptions
+from .._parameters import (
     PLANT_NAMES,
     PRESETS,
-    Gains,
     InitialEstimates,
     OperatingPoint,
     ParameterError,
     Plant,
 )
-from ..scenarios import ScenarioDistribution
-from .files import read_data, read_gains, read_gains_file
+from .._scenarios import ScenarioDistribution
+from ..controllers import CONTROLLERS, as_controller, parameter_set
 
 __all__ = [
     "CLIError",
@@ -42,6 +39,7 @@ __all__ = [
     "add_phi_layer",
     "with_phi_layer",
     "add_tolerances",
+    "solver_options",
     "parse_sets",
     "build_parameters",
     "build_from_args",
@@ -51,55 +49,6 @@ __all__ = [
     "fresh_out",
     "warn_plant_sets",
 ]
-
-
-class CLIError(Exception):
-    """A user error to report on one line."""
-
-
-class Parser(argparse.ArgumentParser):
-    """argparse's parser with one-line errors (no usage dump), arguments left over
-    reported with the help of the (sub)command they were given to, and the set of
-    its long flags (`flags`, for `one_line`)."""
-
-    def __init__(self, *args, **kw):
-        self.flags: set[str] = set()  # before argparse adds -h/--help
-        super().__init__(*args, **kw)
-
-    def add_argument(self, *names, **kw):
-        self.flags.update(n for n in names if n.startswith("--"))
-        return super().add_argument(*names, **kw)
-
-    def error(self, message):
-        raise CLIError(f"{message} (see `{self.prog} --help`)")
-
-    def parse_args(self, args=None, namespace=None):
-        ns, extras = self.parse_known_args(args, namespace)
-        if extras:
-            command = getattr(ns, "command", None)
-            prog = f"{self.prog} {command}" if command else self.prog
-            raise CLIError(
-                f"unrecognized arguments: {' '.join(extras)} (see `{prog} --help`)"
-            )
-        return ns
-
-
-def one_line(error: Exception, flags: set[str] = frozenset()) -> str:
-    """The message of a library error with the values the command takes as flags
-    named as the user writes them: the refused one (`t_end = 1.5 s is not allowed`
-    -> `--t-end 1.5 s is not allowed`) and those the reason refers to (`must be
-    after reclose_time = 2 s` -> `must be after --reclose-time 2 s`)."""
-
-    def flag(m: re.Match) -> str:
-        f = "--" + m.group(1).replace("_", "-")
-        return f"{f} {m.group(2)}" if f in flags else m.group(0)
-
-    name = r"(?<![\w.-])([a-z][a-z0-9_]*) = "
-    text = str(error)
-    head, sep, reason = text.partition(" is not allowed")
-    head = re.sub(name + r"(\S+(?: s)?)$", flag, head)
-    reason = re.sub(name + r"(\S+)", flag, reason)
-    return head + sep + reason
 
 
 def positive(text: str) -> float:
@@ -177,17 +126,18 @@ def add_phi_layer(p: Parser) -> None:
 
 def with_phi_layer(ctx: Context, layer: float | None) -> Context:
     """`ctx` with its `phi_layer` option replaced by `layer` (None: unchanged),
-    validated by the paper's law's options (`synergetic_options`); a controller
-    without the option (none, avr-pss) refuses it with one line."""
+    validated by the controller's `check_options`; a controller without the
+    option (none, avr-pss) refuses it with one line."""
     if layer is None:
         return ctx
-    if CONTROLLERS[ctx.controller] is not Synergetic:
+    cls = CONTROLLERS[ctx.controller]
+    if "phi_layer" not in cls.option_names:
         raise ParameterError(
             f"phi_layer = {layer!r} is not allowed for controller "
             f"{ctx.controller!r}: only the paper's law (aftsc, asc) has a boundary "
             "layer"
         )
-    options = synergetic_options(ctx.controller, {**ctx.options, "phi_layer": layer})
+    options = cls.check_options(ctx.controller, {**ctx.options, "phi_layer": layer})
     return dataclasses.replace(ctx, options=options)
 
 
@@ -208,6 +158,12 @@ def add_max_steps(p: Parser) -> None:
         help="adaptive solver step budget per run (default 50000); a run that spends "
         "it is reported as such, not as stable",
     )
+
+
+def solver_options(args) -> SolverOptions:
+    """The adaptive solver's options of a command with `add_tolerances` and
+    `add_max_steps` (--rtol, --atol, --max-steps)."""
+    return SolverOptions(rtol=args.rtol, atol=args.atol, max_steps=args.max_steps)
 
 
 def add_tolerances(p: Parser) -> None:
@@ -261,10 +217,7 @@ def build_parameters(
     if gain_values is None:
         gain_values = read_gains(gains_file, complete=complete) if gains_file else {}
     groups = {"gains": {}, "plant": {}, "op": {}, "init": {}}
-    synergetic = CONTROLLERS[controller] is Synergetic
-    names = (
-        GAIN_NAMES if synergetic else tuple(CONTROLLERS[controller].parameter_kinds())
-    )
+    names = tuple(CONTROLLERS[controller].parameter_kinds())
     owners = {
         **{n: "gains" for n in names},
         **{n: "plant" for n in PLANT_NAMES},
@@ -280,10 +233,7 @@ def build_parameters(
             )
         groups[owners[name]][name] = value
     values = {**gain_values, **groups["gains"]}
-    if synergetic:
-        gains = Gains.paper(controller, **values)
-    else:
-        gains = make_controller(controller, values)
+    gains = parameter_set(controller, values)
     plant = Plant.preset(preset, **{**(plant_values or {}), **groups["plant"]})
     return (
         gains,
@@ -297,9 +247,7 @@ def controller_of(params, adaptation: str, context: Context | None = None):
     """The controller that runs: `params` itself (none, avr-pss) or the paper's law
     with `params` as gains, the adaptation and the options (projection, phi_layer)
     of the context."""
-    if not isinstance(params, Gains):
-        return params
-    return Synergetic.from_options(
+    return as_controller(
         params, adaptation, context.options if context is not None else {}
     )
 
@@ -362,9 +310,7 @@ def build_from_args(args, complete=False, controller=None):
 def parameter_values(params) -> dict[str, float]:
     """A parameter set's tunable values (the paper's nine gains plus c1, c2, or a
     controller's own), as plain floats."""
-    if isinstance(params, Gains):
-        return {k: float(getattr(params, k)) for k in GAIN_NAMES}
-    return params.parameters()
+    return as_controller(params).parameters()
 
 
 def read_dist(path) -> ScenarioDistribution:
@@ -376,9 +322,3 @@ def read_dist(path) -> ScenarioDistribution:
     if not isinstance(data, dict):
         raise ParameterError(f"--dist file {str(path)!r} must hold a table")
     return ScenarioDistribution.from_dict(data)
-
-
-def fresh_out(kind: str) -> Path:
-    """A new run folder under runs/, named by kind and time."""
-    stamp = datetime.datetime.now().strftime("%Y%m%d-%H%M%S")
-    return Path("runs") / f"{kind}-{stamp}"

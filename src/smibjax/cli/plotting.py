@@ -11,9 +11,8 @@ from __future__ import annotations
 import os
 
 import numpy as np
-from matplotlib.figure import Figure
 
-from .files import atomic_write
+from .._figures import save_figure, subplots
 
 __all__ = [
     "trajectory_arrays",
@@ -65,48 +64,6 @@ def _panels(ax, runs: dict[str, dict], key: str, col=None, ylabel="", true=None)
         ax.axhline(true, color="k", ls="--", lw=1, label="true value")
     ax.set_ylabel(ylabel)
     ax.grid(alpha=0.3)
-
-
-def plot_formats() -> list[str]:
-    """File name suffixes (without the dot) of the formats written here: matplotlib's
-    own vector and raster writers (pgf, which needs LaTeX, and the formats that rest
-    on optional Pillow plugins are left out)."""
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-
-    own = {"eps", "jpeg", "jpg", "pdf", "png", "ps", "svg", "svgz", "tif", "tiff"}
-    return sorted(own & set(FigureCanvasAgg.get_supported_filetypes()))
-
-
-def check_plot_path(path, option: str = "--plot"):
-    """`path` as a Path when its suffix names a format matplotlib writes (.png, .pdf,
-    .svg, ...); otherwise a one-line `ParameterError`."""
-    from pathlib import Path
-
-    from ..parameters import ParameterError
-
-    p = Path(path)
-    fmt = p.suffix[1:].lower()
-    formats = plot_formats()
-    if fmt not in formats:
-        raise ParameterError(
-            f"{option} = {str(p)!r} is not allowed: must end in one of "
-            f"{', '.join('.' + f for f in formats)}"
-        )
-    return p
-
-
-def subplots(nrows: int = 1, ncols: int = 1, **kw):
-    """(figure, axes) as `pyplot.subplots` makes them, without pyplot: `figsize`
-    goes to the figure, the rest to `Figure.subplots`."""
-    fig = Figure(figsize=kw.pop("figsize", None))
-    return fig, fig.subplots(nrows, ncols, **kw)
-
-
-def save_figure(fig, path, dpi: int = 110) -> None:
-    """Atomically write `fig` in the format its file name's suffix asks for (PNG
-    without one), at `dpi` dots per inch."""
-    fmt = os.path.splitext(str(path))[1][1:].lower() or "png"
-    atomic_write(path, lambda tmp: fig.savefig(tmp, dpi=dpi, format=fmt))
 
 
 def _note_lost(fig, runs):

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import math
 
+from .._metrics import Metrics
 from ..controllers import describe
-from ..metrics import Metrics
 
 __all__ = ["metrics_dict", "format_summary", "markdown_table"]
 

@@ -8,10 +8,12 @@ from pathlib import Path
 
 import numpy as np
 
-from ..metrics import metrics
-from ..parameters import Fault, Gains, Plant
-from ..simulate import simulate
-from .files import atomic_write, write_json, write_npz, write_text
+from .._files import atomic_write, write_json, write_npz, write_text
+from .._metrics import metrics
+from .._options import SaveOptions
+from .._parameters import Fault, Plant
+from .._simulate import simulate
+from ..controllers.synergetic import Gains
 from .plotting import plot_figure, trajectory_arrays
 from .report import markdown_table, metrics_dict
 
@@ -71,7 +73,7 @@ def reproduce(out: Path, preset: str = "paper", t_end: float = 10.0) -> dict:
         runs = {}
         for label, ctrl in _CONTROLLERS.items():
             gains = Gains.paper(ctrl, **overrides)
-            traj = simulate(gains, fault, plant, t_end=t_end)
+            traj = simulate(gains, fault, plant, save=SaveOptions(t_end=t_end))
             a = trajectory_arrays(traj)
             runs[label] = a
             stem = f"{set_name}_{ctrl}"

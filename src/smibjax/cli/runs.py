@@ -17,15 +17,15 @@ from pathlib import Path
 import jax
 import numpy as np
 
-from ..montecarlo import (
+from .._files import write_json, write_npz, write_text
+from .._montecarlo import (
     COLUMNS,
     INT_COLUMNS,
     MonteCarloSpec,
     in_process_runner,
     summarize,
 )
-from ..parameters import ParameterError
-from .files import write_json, write_npz, write_text
+from .._parameters import ParameterError
 
 __all__ = ["run_montecarlo", "read_rows", "write_csv", "summary_markdown"]
 

@@ -9,11 +9,13 @@ from pathlib import Path
 
 import numpy as np
 
+from .._figures import check_plot_path
+from .._files import check_new_file, write_npz
+from .._metrics import metrics
+from .._options import SaveOptions
+from .._parameters import Fault
+from .._simulate import simulate
 from ..controllers import describe
-from ..metrics import metrics
-from ..parameters import Fault
-from ..simulate import simulate
-from .files import check_new_file, write_npz
 from .options import (
     CLIError,
     add_common,
@@ -23,8 +25,9 @@ from .options import (
     controller_of,
     parameter_values,
     positive,
+    solver_options,
 )
-from .plotting import check_plot_path, plot_trajectory, trajectory_arrays
+from .plotting import plot_trajectory, trajectory_arrays
 from .report import format_summary, metrics_dict
 
 __all__ = ["add_parser", "run"]
@@ -77,11 +80,8 @@ def run(args) -> int:
         plant,
         op=op,
         init=init,
-        t_end=args.t_end,
-        dt_save=args.dt_save,
-        rtol=args.rtol,
-        atol=args.atol,
-        max_steps=args.max_steps,
+        solver=solver_options(args),
+        save=SaveOptions(args.t_end, args.dt_save),
     )
     _warn_dt_save(args)
     m = metrics(traj)

@@ -16,11 +16,10 @@ from __future__ import annotations
 from collections.abc import Mapping
 
 from .._validate import ParameterError
-from ..parameters import Gains
 from .avr_pss import AvrPss
 from .base import AbstractController, ControllerOutput
 from .none import NoControl
-from .synergetic import EstimateBox, Synergetic, project
+from .synergetic import EstimateBox, Gains, Synergetic, project
 
 __all__ = [
     "AbstractController",
@@ -31,6 +30,8 @@ __all__ = [
     "AvrPss",
     "CONTROLLERS",
     "make_controller",
+    "parameter_set",
+    "as_controller",
     "controller_parameter_names",
     "project",
     "describe",
@@ -79,14 +80,14 @@ def make_controller(
                 f"{', '.join(allowed) or '(none)'}"
             )
     cls = CONTROLLERS[name]
-    if cls is Synergetic:
+    if cls.has_adaptation:
         if adaptation not in ("oracle", "realizable"):
             raise ParameterError(
                 f"adaptation = {adaptation!r} is not allowed: must be 'oracle' or "
                 "'realizable'"
             )
-        gains = Gains.paper(name, **params)
-        return Synergetic(gains, oracle=adaptation == "oracle", projection=projection)
+        gains = cls.parameter_set(name, params)
+        return cls(gains, oracle=adaptation == "oracle", projection=projection)
     if projection is not None:
         raise ParameterError(
             f"a projection box is an option of aftsc/asc, not of controller {name!r}"
@@ -94,17 +95,37 @@ def make_controller(
     return cls(**params)
 
 
+def parameter_set(name: str, values: Mapping[str, float] | None = None):
+    """The parameter set of controller `name` with its defaults overridden by
+    `values` (an unknown name is a `ParameterError`): the paper's `Gains` for
+    aftsc/asc (alpha = 5/7 or 1), the controller itself otherwise."""
+    _check_name(name)
+    values = dict(values or {})
+    allowed = controller_parameter_names(name)
+    for k in values:
+        if k not in allowed:
+            raise ParameterError(
+                f"{k!r} is not a parameter of controller {name!r}: allowed are "
+                f"{', '.join(allowed) or '(none)'}"
+            )
+    return CONTROLLERS[name].parameter_set(name, values)
+
+
+def as_controller(
+    params: Gains | AbstractController,
+    adaptation: str = "oracle",
+    options: dict | None = None,
+) -> AbstractController:
+    """`params` itself if it is a controller, else the paper's law with gains
+    `params`, the `adaptation` mode ("oracle" or "realizable") and the options of a
+    gains file or spec (projection, phi_layer; absent: off)."""
+    if isinstance(params, AbstractController):
+        return params
+    return Synergetic.from_parameters(params, adaptation, options)
+
+
 def describe(params) -> str:
     """A one-line label of a parameter set or controller for titles and reports:
     'AFTSC: beta = (-1, -1), alpha = 0.714' for the paper's law (ASC where alpha =
     1), 'no control', 'AVR + PSS + SVC regulator'."""
-    gains = params.gains if isinstance(params, Synergetic) else params
-    if isinstance(gains, Gains):
-        a = float(gains.alpha)
-        return (
-            f"{'AFTSC' if a < 1 else 'ASC'}: beta = ({float(gains.beta1):g}, "
-            f"{float(gains.beta2):g}), alpha = {a:.3g}"
-        )
-    return {NoControl: "no control", AvrPss: "AVR + PSS + SVC regulator"}.get(
-        type(params), type(params).__name__
-    )
+    return as_controller(params).label()

@@ -1,4 +1,4 @@
-"""`avr-pss`: the conventional baseline (MODEL.md section 2, "Baselines").
+"""`avr-pss`: the conventional baseline (docs/model.md section 2, "Baselines").
 
 - A static exciter (IEEE ST1A-like): u_f = K_A / (1 + s T_A) (Vt_ref - Vt + v_s),
   a non-windup lag held within [uf_min, uf_max] (the plant's field limits);
@@ -8,7 +8,7 @@
 - an SVC voltage regulator: u_r = K_svc / (1 + s T_svc) (Vt_ref - Vt), a non-windup
   lag within [ur_min, ur_max] (the SVC rating), through the SVC's own lag Tr.
 
-Vt is the measured SVC-bus voltage on the network in force (MODEL.md section 1);
+Vt is the measured SVC-bus voltage on the network in force (docs/model.md section 1);
 Vt_ref is its operating-point value, and the exciter's reference is set so that the
 lag starts at E_fd0 (no initial transient).
 
@@ -26,10 +26,10 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
 
+from .._network import prefault_stage
+from .._parameters import _f
+from .._plant import equilibrium_state, operating_field_voltage, terminal_voltage
 from .._validate import is_concrete, require
-from ..network import prefault_stage
-from ..parameters import _f
-from ..plant import equilibrium_state, operating_field_voltage, terminal_voltage
 from .base import AbstractController, ControllerOutput
 
 __all__ = ["AvrPss"]
@@ -135,6 +135,9 @@ class AvrPss(AbstractController):
     def _vt_ref(self, plant, op):
         z_e = equilibrium_state(op, plant)
         return terminal_voltage(z_e[0], z_e[2], z_e[3], prefault_stage(plant), plant)
+
+    def label(self) -> str:
+        return "AVR + PSS + SVC regulator"
 
     def __call__(self, t, z, s, stage, plant, op, trig=None):
         u_f, x_w, x_1, x_2, u_r = s[0], s[1], s[2], s[3], s[4]

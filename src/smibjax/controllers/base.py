@@ -16,9 +16,10 @@ from typing import ClassVar, NamedTuple
 import equinox as eqx
 from jaxtyping import Array, Float
 
-from ..network import Stage
-from ..parameters import InitialEstimates, OperatingPoint, Plant
-from ..plant import Trig
+from .._network import Stage
+from .._parameters import InitialEstimates, OperatingPoint, Plant
+from .._plant import Trig
+from .._validate import ParameterError
 
 __all__ = ["AbstractController", "ControllerOutput"]
 
@@ -48,7 +49,7 @@ class AbstractController(eqx.Module):
     has_estimates: ClassVar[bool] = False  # internal[:2] estimates theta = (-D, Pm)
     diagnostic_names: ClassVar[tuple[str, str]] = ("-", "-")
     # The rotor angles (rad) inside which the run keeps synchronism: a pole slip at
-    # +-pi in general; the paper's law is singular at 0 and pi (MODEL.md section 3)
+    # +-pi in general; the paper's law is singular at 0 and pi (docs/model.md section 3)
     # and narrows it to (0, pi).
     angle_range: ClassVar[tuple[float, float]] = (-math.pi, math.pi)
 
@@ -75,14 +76,14 @@ class AbstractController(eqx.Module):
     ) -> ControllerOutput:
         """Commanded inputs, internal-state derivative and diagnostics at time t (s).
         `trig`: (sin delta, cos delta) of the measured angle when the caller has
-        them (`smibjax.plant.sincos`: the closed loop computes them once per
+        them (`smibjax._plant.sincos`: the closed loop computes them once per
         evaluation for the controller and the plant); None: compute them."""
 
     def parameters(self) -> dict[str, float]:
         """The tunable parameters as plain floats (the gains-file layout)."""
         return {n: float(getattr(self, n)) for n in self.parameter_kinds()}
 
-    # The split a batch engine needs (`smibjax.batch`): the tunable part of a
+    # The split a batch engine needs (`smibjax._batch`): the tunable part of a
     # controller is traced (one compiled program for any values, vmapped over lanes
     # where every lane has its own), the rest is its structure, compiled in.
 
@@ -105,3 +106,90 @@ class AbstractController(eqx.Module):
     @abc.abstractmethod
     def parameter_kinds(cls) -> dict[str, str]:
         """Tunable parameter name -> transform kind (see the class docstring)."""
+
+    # What the core asks of a controller beyond its dynamics: the simulator, the
+    # closed loop, CCT, Monte Carlo, gains files, the command line and the tuner ask
+    # here, never by the controller's type. The defaults fit a controller without an
+    # adaptation mode or options (none, avr-pss).
+
+    # True: the controller has an adaptation mode ("oracle" or "realizable",
+    # `with_adaptation`) and its parameter set is a separate pytree (`parameter_set`).
+    has_adaptation: ClassVar[bool] = False
+    # The option names a gains file or Monte Carlo spec may give (`check_options`).
+    option_names: ClassVar[tuple[str, ...]] = ()
+
+    @classmethod
+    def parameter_set(cls, name: str, values: dict[str, float]):
+        """The parameter set of registry name `name` with `values` overriding the
+        defaults (names already checked): the controller itself by default."""
+        return cls(**values)
+
+    @classmethod
+    def parameter_type(cls) -> type:
+        """The class whose fields are the tunable parameters (the tuner builds it
+        from a table): the controller itself by default."""
+        return cls
+
+    @classmethod
+    def required_parameters(cls) -> tuple[str, ...]:
+        """The parameters a gains file for batch studies must give (none: the
+        defaults stand in)."""
+        return ()
+
+    @classmethod
+    def check_options(cls, name: str, options: dict) -> dict:
+        """The validated options of a gains file or spec for controller `name`
+        (raises `ParameterError` with one line); without options only {} is
+        allowed."""
+        if options:
+            bad = next(iter(options))
+            raise ParameterError(
+                f"option {bad!r} is not allowed for controller {name!r}: it has "
+                "no options"
+            )
+        return {}
+
+    @classmethod
+    def options_for_file(cls, name: str, values: dict, options: dict) -> tuple:
+        """(registry name, options) a gains file written by the tuner records for
+        tuned `values` and the configured `options`: the name and no options by
+        default."""
+        return name, {}
+
+    @classmethod
+    def from_parameters(
+        cls, params, adaptation: str = "oracle", options: dict | None = None
+    ) -> AbstractController:
+        """The controller that runs parameter set `params` (`parameter_set`) under
+        the adaptation mode and the options: `params` itself by default."""
+        return params
+
+    def with_adaptation(self, adaptation: str | None) -> AbstractController:
+        """This controller under the adaptation mode `adaptation` (None: its own);
+        a controller without one ignores it."""
+        return self
+
+    def specialized(self) -> AbstractController:
+        """The controller to compile: values known to be special compiled in as
+        constants (the paper's law at alpha = 1). Itself by default."""
+        return self
+
+    def placeholder_internal(
+        self,
+        z0: Float[Array, 4],
+        plant: Plant,
+        op: OperatingPoint,
+        init: InitialEstimates,
+    ) -> Float[Array, " k"]:
+        """A harmless internal state for the closed loop's out-of-domain fallback,
+        without the checks of `initial_internal` (by default it)."""
+        return self.initial_internal(z0, plant, op, init)
+
+    def check_estimates(self, init: InitialEstimates) -> None:
+        """Raise `ParameterError` (one line) where the initial estimates, concrete
+        and of any batch shape, are not allowed for this controller; by default
+        any are."""
+
+    def label(self) -> str:
+        """A one-line label for titles and reports."""
+        return type(self).__name__

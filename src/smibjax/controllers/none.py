@@ -1,4 +1,4 @@
-"""`none`: no control action (MODEL.md section 2, "Baselines").
+"""`none`: no control action (docs/model.md section 2, "Baselines").
 
 The field voltage is held at its operating-point value E_fd0 (the u_f that makes
 dE'/dt = 0 at the operating point) and the SVC command is 0, so B relaxes to B0. With
@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import jax.numpy as jnp
 
-from ..plant import operating_field_voltage
+from .._plant import operating_field_voltage
 from .base import AbstractController, ControllerOutput
 
 __all__ = ["NoControl"]
@@ -27,6 +27,9 @@ class NoControl(AbstractController):
 
     def initial_internal(self, z0, plant, op, init):
         return jnp.zeros((0,), dtype=z0.dtype)
+
+    def label(self) -> str:
+        return "no control"
 
     def __call__(self, t, z, s, stage, plant, op, trig=None):
         u_f = operating_field_voltage(op, plant) + jnp.zeros_like(z[0])

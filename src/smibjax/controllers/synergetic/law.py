@@ -1,11 +1,11 @@
-"""The adaptive synergetic controller in the paper's coordinates (MODEL.md section 2).
+"""The adaptive synergetic controller in the paper's coordinates (docs/model.md section 2).
 
 One control law covers both controllers of the paper: alpha < 1 is the adaptive
 finite-time synergetic controller (AFTSC, eqs. 21-22), alpha = 1 the adaptive synergetic
 baseline (ASC, eqs. 36-37). The controller sees the measured plant state z through its
 *nominal* (pre-fault) network model. The law evaluates f and g of the affine model
-dx/dt = f + g u in MODEL.md's closed forms (`drift_and_gain_closed_form`), with one sin
-and one cos of the rotor angle (`smibjax.plant.sincos`): about half the cost of a
+dx/dt = f + g u in docs/model.md's closed forms (`drift_and_gain_closed_form`), with one sin
+and one cos of the rotor angle (`smibjax._plant.sincos`): about half the cost of a
 Monte Carlo run was XLA evaluating them again in every fused consumer. `drift_and_gain`
 derives f and g by `jax.jvp` of the coordinate map z -> x along the nominal plant
 vector field, and the tests hold the closed forms to it (1e-12 over random states and
@@ -21,10 +21,11 @@ import jax
 import jax.numpy as jnp
 from jaxtyping import Array, Float
 
-from ._validate import is_concrete
-from .network import prefault_stage
-from .parameters import Gains, OperatingPoint, Plant
-from .plant import Trig, plant_vector_field
+from ..._network import prefault_stage
+from ..._parameters import OperatingPoint, Plant
+from ..._plant import Trig, plant_vector_field
+from ..._validate import is_concrete
+from .gains import Gains
 
 __all__ = [
     "spow",
@@ -42,7 +43,7 @@ Scalar = Float[Array, ""]
 
 # Below this |y| the derivative of spow is evaluated at |y| = SPOW_DERIVATIVE_FLOOR:
 # a |y|^(a-1) is infinite at y = 0 for a < 1, and reverse-mode gradients would be
-# inf/NaN (MODEL.md section 3). The forward value is exact.
+# inf/NaN (docs/model.md section 3). The forward value is exact.
 SPOW_DERIVATIVE_FLOOR = 1e-9
 
 
@@ -119,7 +120,7 @@ def _spow_jvp(primals, tangents):
 def _affine_model(
     z: Float[Array, 4], plant: Plant, trig: Trig | None = None
 ) -> tuple[Float[Array, 4], Float[Array, 2], Float[Array, "2 2"]]:
-    """(x, (f3, f4), g): the paper coordinates and MODEL.md's closed forms of the
+    """(x, (f3, f4), g): the paper coordinates and docs/model.md's closed forms of the
     affine model, with sin and cos of delta evaluated once (or taken from `trig`)
     and x2 cot(x1) x3 written as x2 E V cos(x1) / Xs (no tangent, no division by
     sin x1)."""
@@ -149,7 +150,7 @@ def paper_coordinates(
     """x = (delta, domega, Pe, Psvc) of the measured state z = (delta, domega, E, B)
     on the nominal network (X2 = XL, Bf = 0):
     Pe = E V sin(delta)/Xs and Psvc = Mt Pe with Mt = Xs/(Xs - X1 X2 B) - 1.
-    `trig`: (sin delta, cos delta) if already computed (`smibjax.plant.sincos`)."""
+    `trig`: (sin delta, cos delta) if already computed (`smibjax._plant.sincos`)."""
     return _affine_model(z, plant, trig)[0]
 
 
@@ -176,10 +177,10 @@ def drift_and_gain(
 def drift_and_gain_closed_form(
     z: Float[Array, 4], plant: Plant, trig: Trig | None = None
 ) -> tuple[Float[Array, 2], Float[Array, "2 2"]]:
-    """MODEL.md's closed forms of (f3, f4) and g (errata applied), the ones the
+    """docs/model.md's closed forms of (f3, f4) and g (errata applied), the ones the
     control law evaluates: f3 = (-a + x2 cot x1) x3 + c V^2 sin(2 x1)/(2 Xs),
     g31 = V sin(x1)/Xs, f4 = Mt f3 + Nt (B - B0)/Tr, g41 = Mt g31, g42 = -Nt.
-    `trig`: (sin delta, cos delta) if already computed (`smibjax.plant.sincos`)."""
+    `trig`: (sin delta, cos delta) if already computed (`smibjax._plant.sincos`)."""
     _, f, g = _affine_model(z, plant, trig)
     return f, g
 
@@ -194,7 +195,7 @@ class ControlOutput(NamedTuple):
 
 
 def evolution(phi: Array, T: Array, a: Array | float, layer: float = 0.0) -> Array:
-    """The evolution law's rate phi_dot = spow(-phi/T, alpha) (MODEL.md section 2), or
+    """The evolution law's rate phi_dot = spow(-phi/T, alpha) (docs/model.md section 2), or
     with `layer` = eps > 0 (same units as phi) its boundary-layer ("practical
     finite-time") form -phi (phi^2 + eps^2)^((alpha - 1)/2) / T^alpha: equal to the
     exact law to a relative 1 - (1 + eps^2/phi^2)^((alpha - 1)/2) (< 1e-3 for
@@ -221,11 +222,11 @@ def control_law(
                  / (b2 g42)
     with xdot2_hat = (th2 + th1 x2 - x3 - x4)/M, errors e = x - (delta_e, 0, Pm_ref, 0)
     and macro-variables phi1 = e1 + e2 + b1 e3, phi2 = e1 + e2 + b2 e4. With weighted
-    macro-variables (MODEL.md section 2) phi_i = c_i e1 + e2 + b_i e_(i+2) and the
+    macro-variables (docs/model.md section 2) phi_i = c_i e1 + e2 + b_i e_(i+2) and the
     x2 of each law becomes c_i x2 (c1 = c2 = 1: the paper, the default). `layer` > 0:
     the boundary-layer form of the evolution law (see `evolution`; 0: exact).
     f and g are the closed forms (`drift_and_gain_closed_form`); `trig`: (sin delta,
-    cos delta) if already computed (`smibjax.plant.sincos`).
+    cos delta) if already computed (`smibjax._plant.sincos`).
     """
     x, f, g = _affine_model(z, plant, trig)
     e1 = x[0] - op.delta_e

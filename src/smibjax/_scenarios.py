@@ -12,8 +12,8 @@ import math
 
 import jax
 
+from ._parameters import Fault, ParameterError
 from ._validate import MAX_MAGNITUDE
-from .parameters import Fault, ParameterError
 
 __all__ = [
     "FaultDistribution",

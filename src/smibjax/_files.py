@@ -1,4 +1,5 @@
-"""Files: gain tables in, atomic writes out. Nothing here is used by the numerical core."""
+"""Files: gain tables and gains files in, atomic writes out (the command line and the
+tuner read and write through here). Nothing here is used by the numerical core."""
 
 from __future__ import annotations
 
@@ -8,8 +9,9 @@ import tempfile
 from collections.abc import Callable
 from pathlib import Path
 
-from ..gainsfile import GainsFile, check_complete, is_schema_table, legacy, validate
-from ..parameters import GAIN_NAMES, ParameterError
+from ._gainsfile import GainsFile, check_complete, is_schema_table, legacy, validate
+from ._parameters import ParameterError
+from .controllers.synergetic import GAIN_NAMES
 
 try:  # Python >= 3.11
     import tomllib
@@ -177,7 +179,7 @@ def write_npz(path: str | os.PathLike, arrays: dict) -> Path:
 
 
 def read_gains_file(path: str | os.PathLike, complete: bool = False) -> GainsFile:
-    """A gains file (`smibjax.gainsfile`): schema, or a flat table of gains (`legacy`,
+    """A gains file (`smibjax._gainsfile`): schema, or a flat table of gains (`legacy`,
     with the paper's context). With `complete`, the paper's law needs every gain but
     c1, c2 (a gain set for batch studies)."""
     p = Path(path)

@@ -12,8 +12,7 @@ import equinox as eqx
 import jax.numpy as jnp
 from jaxtyping import Array, Bool, Float
 
-from .controllers import AbstractController, Synergetic
-from .network import (
+from ._network import (
     Stage,
     by_stage,
     fault_stage,
@@ -21,13 +20,14 @@ from .network import (
     prefault_stage,
     stage_at,
 )
-from .parameters import Fault, Gains, InitialEstimates, OperatingPoint, Plant
-from .plant import (
+from ._parameters import Fault, InitialEstimates, OperatingPoint, Plant
+from ._plant import (
     apply_limits,
     equilibrium_state,
     plant_vector_field,
     sincos,
 )
+from .controllers import AbstractController, Gains, as_controller
 
 __all__ = [
     "ClosedLoop",
@@ -36,7 +36,6 @@ __all__ = [
     "healthy",
     "N_STATE",
     "N_DYNAMIC",
-    "as_controller",
 ]
 
 N_STATE = 8  # delta, domega, E, B, th1, th2, J_f, J_r (the paper's controller)
@@ -45,7 +44,7 @@ N_DYNAMIC = 6  # the first six enter the error control; the effort integrals do 
 # Loss of synchronism is declared (and the run ends as unstable) when delta comes within
 # DELTA_MARGIN rad of the ends of the controller's angle range (0 and pi for the paper's
 # law, -pi and pi otherwise), E' falls below E_MIN, or a transfer reactance falls below
-# X_MIN: the control law has 1/sin(delta) and 1/Pe singularities there (MODEL.md
+# X_MIN: the control law has 1/sin(delta) and 1/Pe singularities there (docs/model.md
 # section 3) and no trajectory crosses them, so the spec's "delta leaves (0, pi)" is
 # detected a hair before the singularity instead of after it.
 DELTA_MARGIN = 1e-3
@@ -82,7 +81,7 @@ class ClosedLoop(eqx.Module):
     ):
         """`gains`: a controller, or the paper's `Gains` (then the `Synergetic`
         controller with the `oracle` or realizable update law)."""
-        self.controller = as_controller(gains, oracle)
+        self.controller = as_controller(gains, "oracle" if oracle else "realizable")
         self.fault, self.plant, self.op = fault, plant, op
         self.input_smoothing = input_smoothing
         self.fault_network = fault_stage(plant, fault.lam, fault.Xf)
@@ -108,16 +107,6 @@ class ClosedLoop(eqx.Module):
         return 4 + self.controller.n_internal
 
 
-def as_controller(
-    gains: Gains | AbstractController, oracle: bool = True
-) -> AbstractController:
-    """`gains` itself if it is a controller, else the paper's `Synergetic` controller
-    with these gains (`oracle`: the paper's update law; False: realizable)."""
-    if isinstance(gains, AbstractController):
-        return gains
-    return Synergetic(gains, oracle=oracle)
-
-
 def _b_max(stage: Stage, plant: Plant):
     """The SVC susceptance B (pu) at which the transfer reactance of `stage`,
     Xs - X1 X2 (B + Bf), falls to X_MIN."""
@@ -135,16 +124,13 @@ def initial_state(
     """y(0): the operating point, the controller's initial internal state (for the
     paper's controller, the default: the initial estimates) and zero effort.
     `check=False` skips the controller's checks of `init` (for a placeholder state)."""
-    controller = Synergetic(Gains()) if controller is None else controller
+    controller = as_controller(Gains()) if controller is None else controller
     z0 = equilibrium_state(op, plant)
     zero = jnp.zeros_like(z0[0])
-    if check or not isinstance(controller, Synergetic):
+    if check:
         s0 = controller.initial_internal(z0, plant, op, init)
-    else:  # a placeholder inside any projection box: the paper's or its centre
-        box = controller.projection
-        s0 = jnp.stack([init.th1 + zero, init.th2 + zero])
-        if box is not None:
-            s0 = 0.5 * (box.lo + box.hi) + zero
+    else:  # a placeholder (inside any projection box of the paper's law)
+        s0 = controller.placeholder_internal(z0, plant, op, init)
     return jnp.concatenate([z0, s0, jnp.stack([zero, zero])])
 
 

@@ -2,7 +2,7 @@
 
 The generator E' / delta sits behind X1 = X'_d + X_T from the SVC bus m; from m a stage
 of the network is the pair (X2, Bf): the series reactance from m to the infinite bus and
-an extra shunt susceptance at m caused by the fault (MODEL.md section 1).
+an extra shunt susceptance at m caused by the fault (docs/model.md section 1).
 """
 
 from __future__ import annotations
@@ -12,7 +12,7 @@ import jax
 import jax.numpy as jnp
 from jaxtyping import Array, Float
 
-from .parameters import Fault, Plant
+from ._parameters import Fault, Plant
 
 __all__ = [
     "Stage",

@@ -14,7 +14,7 @@ that they all run one program, built one way:
   structure (adaptation mode, projection box, boundary layer) is compiled in.
 - alpha = 1 (ASC) is compiled in as the constant 1 where every lane has it
   (`smibjax.controller.static_alpha`: the signed powers disappear).
-- The batch is split over the host devices (`smibjax.parallel.device_map`).
+- The batch is split over the host devices (`smibjax._parallel.device_map`).
 
 An `Engine` holds the constants and the solver settings; `Engine.run` takes one
 controller for every scenario, or one per scenario (`lanes`). Compiled programs are
@@ -32,13 +32,13 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Bool, Float, Int
 
+from ._metrics import DEFAULT_BANDS, Metrics, metrics
+from ._options import SaveOptions, SolverOptions
+from ._parallel import device_map
+from ._parameters import Fault, InitialEstimates, OperatingPoint, Plant
+from ._simulate import simulate
 from ._validate import ParameterError, is_concrete, require_count, require_positive
-from .closed_loop import as_controller
-from .controllers import AbstractController
-from .metrics import DEFAULT_BANDS, Metrics, metrics
-from .parallel import device_map
-from .parameters import Fault, Gains, InitialEstimates, OperatingPoint, Plant
-from .simulate import simulate
+from .controllers import AbstractController, Gains, as_controller
 
 __all__ = ["Engine", "Outcome", "Scenarios"]
 
@@ -57,7 +57,7 @@ class Scenarios(NamedTuple):
 class Outcome(NamedTuple):
     """What the engine returns per scenario (leading axis: the scenario)."""
 
-    metrics: Metrics  # exact metrics of the run (`smibjax.metrics`)
+    metrics: Metrics  # exact metrics of the run (`smibjax._metrics`)
     lost_sync: Bool[Array, " n"]  # the run left the controller's angle range
     budget_exhausted: Bool[Array, " n"]  # max_steps spent before t_end
     t_stop: Float[Array, " n"]  # s: t_end, or when synchronism was lost
@@ -90,7 +90,7 @@ class Engine:
 
     `plant`, `op`, `init`: the constants of every run (defaults: the paper's);
     `t_end`, `dt_save` (s): horizon and sampling; `rtol`, `atol`, `max_steps`: the
-    adaptive solver (`smibjax.simulate`); `delta_band` (rad), `Vt_band` (pu),
+    adaptive solver (`smibjax._simulate`); `delta_band` (rad), `Vt_band` (pu),
     `omega_band` (rad/s): the metrics' settling bands.
     """
 
@@ -146,7 +146,7 @@ class Engine:
                 f"controller = {controller!r} is not allowed: must be a controller "
                 "(smibjax.controllers) or Gains"
             )
-        template = as_controller(controller, True)
+        template = as_controller(controller)
         values = template.tunable() if lanes is None else lanes
         alpha_one = _all_alpha_one(template, values)
         key = (
@@ -217,11 +217,8 @@ def _program(
             p,
             op=op,
             init=init,
-            t_end=e.t_end,
-            dt_save=e.dt_save,
-            rtol=e.rtol,
-            atol=e.atol,
-            max_steps=e.max_steps,
+            solver=SolverOptions(rtol=e.rtol, atol=e.atol, max_steps=e.max_steps),
+            save=SaveOptions(e.t_end, e.dt_save),
         )
         return Outcome(
             metrics(tr, e.delta_band, e.Vt_band, e.omega_band),

@@ -2,7 +2,7 @@
 
 XLA's CPU backend runs a vmapped batch on one core. With several host devices
 (`--xla_force_host_platform_device_count=N`, set by the entry points:
-`smibjax.cli.process.use_host_devices`) the batch is
+`smibjax.configure`) the batch is
 split along its leading axis over the devices, so N cores work at once. Two ways:
 
 - `device_map`: each slice is committed to its own device and the same jitted function

@@ -1,12 +1,13 @@
-"""What the entry points set up in their process, and the library never does.
+"""Process set-up: what a program using smibjax sets once, before it computes.
 
-The command line (`python -m smibjax`), the tuner (`python -m tuning.optimize`), the
-Dask workers, the benchmarks and the test suite call `configure_process` before they
-compute anything. A program that imports smibjax as a library sets what it needs
-itself (README, "Using the simulator"): at least JAX's 64-bit mode.
+Importing smibjax sets nothing; `smibjax.configure` sets what the command line
+(`python -m smibjax`), the tuner (`python -m tuning.optimize`), the Dask workers, the
+benchmarks and the test suite set before they compute anything: host devices,
+float64, equinox's error mode and the compilation cache. A library user may call it
+too, or set at least JAX's 64-bit mode.
 
-This module imports neither JAX nor equinox at module level, so that an entry point
-can call `configure_process` before they load.
+This module imports neither JAX nor equinox at module level, so that `configure` can
+run before they load.
 """
 
 from __future__ import annotations
@@ -15,7 +16,7 @@ import os
 import sys
 from pathlib import Path
 
-__all__ = ["configure_process", "enable_compilation_cache", "use_host_devices"]
+__all__ = ["configure", "enable_compilation_cache", "use_host_devices"]
 
 
 def use_host_devices(minimum: int = 1) -> None:
@@ -50,14 +51,14 @@ def enable_compilation_cache(path: str | None = None) -> str | None:
     return path or None
 
 
-def configure_process(
+def configure(
     *,
     host_devices: bool = True,
     min_devices: int = 1,
     cache: bool = True,
     cache_dir: str | None = None,
 ) -> None:
-    """Set up this process for smibjax's entry points:
+    """Set up this process for smibjax (what its entry points call first):
 
     - `EQX_ON_ERROR=nan` unless already set, if equinox is not loaded yet. Equinox
       turns runtime checks into host callbacks, and XLA's persistent compilation

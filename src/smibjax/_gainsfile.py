@@ -31,8 +31,8 @@ import dataclasses
 import math
 from collections.abc import Callable
 
-from .controllers import CONTROLLERS, Synergetic, controller_parameter_names
-from .parameters import GAIN_NAMES, PLANT_NAMES, PRESETS, ParameterError
+from ._parameters import PLANT_NAMES, PRESETS, ParameterError
+from .controllers import CONTROLLERS, controller_parameter_names
 
 __all__ = [
     "SCHEMA",
@@ -62,78 +62,10 @@ _LIMITS = {
 }
 
 
-def _no_options(controller: str, options: dict) -> dict:
-    """The paper's law (aftsc, asc) has no options yet: only {} is allowed."""
-    if options:
-        name = next(iter(options))
-        raise ParameterError(
-            f"option {name!r} is not allowed for controller {controller!r}: it has "
-            "no options"
-        )
-    return {}
-
-
-def synergetic_options(controller: str, options: dict) -> dict:
-    """The options of the paper's law, those given (absent: off): `projection` ([]
-    or [[th1_min, th1_max], [th2_min, th2_max]], finite, each lo < hi, containing the
-    initial estimates (-0.5, 0)) and `phi_layer` (a finite number >= 0, the evolution
-    law's boundary layer; 0: exact)."""
-    allowed = ("projection", "phi_layer")
-    out = dict(options)
-    for name in options:
-        if name not in allowed:
-            raise ParameterError(
-                f"option {name!r} is not allowed for controller {controller!r}: "
-                "allowed are projection, phi_layer"
-            )
-    box = out.get("projection", [])
-    if "projection" not in out:
-        pass
-    elif box not in ([], None):
-        try:
-            (a, b), (c, d) = box
-            lo, hi = [float(a), float(c)], [float(b), float(d)]
-        except (TypeError, ValueError):
-            raise ParameterError(
-                f"projection = {box!r} is not allowed: must be [[th1_min, th1_max], "
-                "[th2_min, th2_max]] or [] (off)"
-            ) from None
-        if not all(math.isfinite(x) for x in lo + hi) or not (
-            lo[0] < hi[0] and lo[1] < hi[1]
-        ):
-            raise ParameterError(
-                f"projection = {box!r} is not allowed: must be finite and non-empty "
-                "(each min < max)"
-            )
-        if not (lo[0] <= -0.5 <= hi[0] and lo[1] <= 0.0 <= hi[1]):
-            raise ParameterError(
-                f"projection = {box!r} is not allowed: it must contain the initial "
-                "estimates (th1, th2) = (-0.5, 0)"
-            )
-        out["projection"] = [[lo[0], hi[0]], [lo[1], hi[1]]]
-    else:
-        out["projection"] = []
-    if "phi_layer" not in out:
-        return out
-    layer = out["phi_layer"]
-    if (
-        isinstance(layer, bool)
-        or not isinstance(layer, (int, float))
-        or not (math.isfinite(layer) and layer >= 0)
-    ):
-        raise ParameterError(
-            f"phi_layer = {layer!r} is not allowed: must be a finite number >= 0 "
-            "(0: the exact finite-time law)"
-        )
-    out["phi_layer"] = float(layer)
-    return out
-
-
 # controller -> hook(controller, options) -> validated options (raises ParameterError
-# with one line). A controller with options registers its own hook here.
+# with one line): the controller's `check_options`.
 OPTION_CHECKS: dict[str, Callable[[str, dict], dict]] = {
-    name: synergetic_options if cls is Synergetic else _no_options
-    for name, cls in CONTROLLERS.items()
+    name: cls.check_options for name, cls in CONTROLLERS.items()
 }
 
 
@@ -264,7 +196,7 @@ def validate(data: dict, path=None) -> GainsFile:
     options = data.get("options", {})
     if not isinstance(options, dict):
         raise ParameterError(f"options{where} must be a table")
-    options = OPTION_CHECKS.get(controller, _no_options)(controller, options)
+    options = OPTION_CHECKS[controller](controller, options)
     gains_in = data["gains"]
     if not isinstance(gains_in, dict):
         raise ParameterError(f"gains{where} must be a table of name = number")
@@ -282,7 +214,7 @@ def validate(data: dict, path=None) -> GainsFile:
 
 
 def _check_alpha(controller: str, gains: dict, path) -> None:
-    """aftsc needs alpha < 1, asc alpha = 1 (MODEL.md section 2)."""
+    """aftsc needs alpha < 1, asc alpha = 1 (docs/model.md section 2)."""
     alpha = gains.get("alpha")
     if alpha is None:
         return
@@ -315,9 +247,7 @@ def legacy(gains: dict) -> GainsFile:
 def check_complete(gf: GainsFile, path=None) -> None:
     """For batch studies: the paper's law needs every gain but c1, c2 (1: the
     paper's form)."""
-    if CONTROLLERS[gf.controller] is not Synergetic:
-        return
-    required = [g for g in GAIN_NAMES if g not in ("c1", "c2")]
+    required = CONTROLLERS[gf.controller].required_parameters()
     missing = [g for g in required if g not in gf.gains]
     if missing:
         raise ParameterError(

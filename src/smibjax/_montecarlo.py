@@ -3,7 +3,7 @@
 A run is described by a `MonteCarloSpec` (plain numbers, JSON-able). Scenario i depends
 only on (seed, i) (see `sample_scenarios`), chunk k holds scenarios
 [k chunk, (k + 1) chunk), and `compute_chunk(spec, k)` is a pure function of the two
-(through the batch engine, `smibjax.batch`): chunks can run in any order, in any
+(through the batch engine, `smibjax._batch`): chunks can run in any order, in any
 process, and be retried. `summarize` reduces the rows. Run folders (chunk files,
 resume, CSV and markdown) are the command line's: `smibjax.cli.runs`.
 """
@@ -13,22 +13,24 @@ from __future__ import annotations
 import dataclasses
 import math
 import numbers
-from collections.abc import Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
+from ._batch import Engine, Outcome, Scenarios
+from ._metrics import PHYSICS, physics_summary
+from ._parameters import InitialEstimates, OperatingPoint, ParameterError, Plant
+from ._scenarios import ScenarioDistribution, sample_scenarios
 from ._validate import require_count, require_positive, require_samples
-from .batch import Engine, Outcome, Scenarios
-from .controllers import CONTROLLERS, Synergetic, make_controller
-from .metrics import PHYSICS, physics_summary
-from .parameters import Gains, InitialEstimates, OperatingPoint, ParameterError, Plant
-from .scenarios import ScenarioDistribution, sample_scenarios
+from .controllers import CONTROLLERS, as_controller, parameter_set
 
 __all__ = [
     "COLUMNS",
     "MonteCarloSpec",
+    "MonteCarloResult",
+    "monte_carlo",
     "compute_chunk",
     "summarize",
     "wilson_interval",
@@ -151,15 +153,14 @@ class MonteCarloSpec:
     def distribution(self) -> ScenarioDistribution:
         return ScenarioDistribution.from_dict(self.dist)
 
-    def synergetic(self) -> bool:
-        """True for the paper's law (AFTSC / ASC)."""
-        return self.controller == "" or CONTROLLERS[self.controller] is Synergetic
+    def controller_name(self) -> str:
+        """The registry name of the controller ("" is the paper's AFTSC)."""
+        return self.controller or "aftsc"
 
     def controller_of(self, params):
-        """The controller with parameter set `params` (`parameters()[0]`)."""
-        if not self.synergetic():
-            return params
-        return Synergetic.from_options(params, self.adaptation, self.options)
+        """The controller with parameter set `params` (`parameters()[0]`), under
+        the spec's adaptation mode and options."""
+        return as_controller(params, self.adaptation, self.options)
 
     def parameters(self) -> tuple:
         """The parameter sets (values may be given as numbers or 'inf' strings): the
@@ -174,13 +175,9 @@ class MonteCarloSpec:
                 f"controller = {self.controller!r} is not allowed: must be one of "
                 f"{', '.join(CONTROLLERS)}"
             )
-        if self.synergetic():
-            from .gainsfile import synergetic_options
-
-            synergetic_options(self.controller or "aftsc", dict(self.options))
-            params = Gains(**f(self.gains))
-        else:
-            params = make_controller(self.controller, f(self.gains))
+        name = self.controller_name()
+        CONTROLLERS[name].check_options(name, dict(self.options))
+        params = parameter_set(name, f(self.gains))
         return (
             params,
             Plant(**f(self.plant)),
@@ -292,6 +289,37 @@ def in_process_runner(
     """Run chunks one after another in this process (each spread over all devices)."""
     for k in chunks:
         yield k, compute_chunk(spec, k)
+
+
+@dataclasses.dataclass(frozen=True)
+class MonteCarloResult:
+    """A finished Monte Carlo run: its spec and one row per scenario (`rows`: column
+    name -> array over the scenarios in index order, the columns of `COLUMNS`)."""
+
+    spec: MonteCarloSpec
+    rows: dict[str, np.ndarray]
+
+    def summary(self) -> dict:
+        """The run's summary (`summarize`): stable fraction with its 95% Wilson
+        interval, loss-of-synchronism count, quantiles over the stable scenarios."""
+        return summarize(self.rows)
+
+    def to_dict(self) -> dict:
+        """JSON-able: {"spec": the spec's dict, "summary": `summary()`}."""
+        return {"spec": self.spec.to_dict(), "summary": self.summary()}
+
+
+def monte_carlo(
+    spec: MonteCarloSpec,
+    runner: Callable[[MonteCarloSpec, Iterable[int]], Iterator[tuple[int, dict]]]
+    | None = None,
+) -> MonteCarloResult:
+    """Run every chunk of `spec` (`runner(spec, chunks)` yields (k, rows of chunk k)
+    in any order; default: `in_process_runner`) and join the rows in index order."""
+    runner = runner or in_process_runner
+    parts = dict(runner(spec, range(spec.n_chunks)))
+    rows = {c: np.concatenate([parts[k][c] for k in sorted(parts)]) for c in COLUMNS}
+    return MonteCarloResult(spec, rows)
 
 
 def wilson_interval(k: int, n: int, z: float = 1.959964) -> tuple[float, float]:

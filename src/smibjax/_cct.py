@@ -1,8 +1,8 @@
-"""Critical clearing time (MODEL.md section 4): the largest clearing duration
+"""Critical clearing time (docs/model.md section 4): the largest clearing duration
 t_clear - t_fault (s) such that the run is stable for it and for every shorter
 duration on the tolerance grid.
 
-Stability of a run is judged by one of two criteria (`CRITERIA`): "settled" (MODEL.md
+Stability of a run is judged by one of two criteria (`CRITERIA`): "settled" (docs/model.md
 section 4: no loss of synchronism and delta back in its band at t_end) or
 "synchronism" (the industry definition: no loss of synchronism up to t_end, and the
 solver's step budget not spent).
@@ -38,6 +38,7 @@ that is not.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Callable
 
@@ -45,27 +46,28 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ._validate import require_positive, require_samples
-from .batch import Engine, Scenarios
-from .closed_loop import as_controller
-from .controllers import Synergetic
-from .parameters import (
+from ._batch import Engine, Scenarios
+from ._parameters import (
     Fault,
     InitialEstimates,
     OperatingPoint,
     ParameterError,
     Plant,
 )
+from ._validate import require_positive, require_samples
+from .controllers import as_controller
 
 __all__ = [
     "critical_clearing_times",
+    "CCTResult",
+    "SetCCT",
     "scan_durations",
     "lane_kind",
     "CRITERIA",
     "STATUSES",
 ]
 
-# Stability criteria of a CCT run (MODEL.md section 2, "Baselines", and section 4).
+# Stability criteria of a CCT run (docs/model.md section 2, "Baselines", and section 4).
 CRITERIA = ("settled", "synchronism")
 STATUSES = ("ok", "non_monotone", "exceeds_window", "unstable_at_min")
 
@@ -84,10 +86,7 @@ def _lanes(gain_sets: dict, names: list, adaptation: str):
     with `adaptation`."""
     ctrls = []
     for n in names:
-        c = as_controller(gain_sets[n])
-        if isinstance(c, Synergetic):
-            c = Synergetic(c.gains, adaptation == "oracle", c.projection, c.phi_layer)
-        ctrls.append(c)
+        ctrls.append(as_controller(gain_sets[n]).with_adaptation(adaptation))
     if len({lane_kind(c) for c in ctrls}) > 1:
         raise ParameterError(
             "the gain sets of one CCT call must share one controller and its options "
@@ -180,6 +179,163 @@ def check_options(
     return locs, window
 
 
+@dataclasses.dataclass(frozen=True)
+class SetCCT:
+    """The CCT of one gain set at each fault location: `cct[j]` (s), the largest
+    clearing duration with every shorter one stable, where `status[j]` is "ok" or
+    "non_monotone", else None; `first_unstable[j]` (s) the unstable duration at most
+    `tol` beyond it that ended the bisection; `islands[j]` the later stable [lo, hi]
+    stretches of scan durations (s)."""
+
+    cct: list[float | None]
+    status: list[str]
+    islands: list[list[list[float]]]
+    first_unstable: list[float | None]
+
+
+@dataclasses.dataclass(frozen=True)
+class CCTResult:
+    """What `critical_clearing_times` computed: the options it ran with (times in
+    s), the scan durations (s) and a `SetCCT` per gain set (in the order given)."""
+
+    fault_location: list[float]
+    fault_time: float
+    reclose_time: float
+    fault_reactance: float
+    criterion: str
+    t_end: float
+    window: float  # t_reclose - t_fault (s)
+    tol: float
+    scan: list[float]
+    sets: dict[str, SetCCT]
+
+    def to_dict(self) -> dict:
+        """The JSON layout the command line writes: the fields, `sets` as name ->
+        {"cct", "status", "islands", "first_unstable"}, and top-level "cct",
+        "status" and "islands": those of the one gain set, or with several, tables
+        name -> list."""
+        out = {
+            f.name: getattr(self, f.name)
+            for f in dataclasses.fields(self)
+            if f.name != "sets"
+        }
+        out["fault_location"] = list(self.fault_location)
+        out["scan"] = list(self.scan)
+        sets = {n: dataclasses.asdict(v) for n, v in self.sets.items()}
+        out["sets"] = sets
+        names = list(sets)
+        for key in ("cct", "status", "islands"):
+            out[key] = (
+                sets[names[0]][key]
+                if len(names) == 1
+                else {n: sets[n][key] for n in names}
+            )
+        return out
+
+
+def _stacked_lanes(gain_sets: dict, locs: list, adaptation: str):
+    """(names, template controller, stacked tunable values, fault location) of the
+    lanes: one lane per (gain set, fault location) pair, sets outermost."""
+    if not gain_sets:
+        raise ParameterError("give at least one gain set")
+    names = list(gain_sets)
+    template, values = _lanes(gain_sets, names, adaptation)
+    pairs = [(i, lam) for i in range(len(names)) for lam in locs]
+    gains = jax.tree_util.tree_map(
+        lambda *xs: jnp.stack([jnp.asarray(x) for x in xs]),
+        *[values[i] for i, _ in pairs],
+    )
+    return names, template, gains, np.asarray([p[1] for p in pairs])
+
+
+def _verdicts(engine, template, gains, lam, fault_time, reclose_time, Xf, criterion):
+    """stable_at(durations, lanes): the stable flags of lanes[i] cleared after
+    durations[i] (s), in one batched call of the engine."""
+
+    def stable_at(durations: np.ndarray, lanes: np.ndarray) -> np.ndarray:
+        n = len(durations)
+        tf = jnp.full(n, fault_time)
+        fault = Fault(
+            t_fault=tf,
+            t_clear=tf + jnp.asarray(durations),
+            t_reclose=jnp.full(n, reclose_time),
+            lam=jnp.asarray(lam[lanes]),
+            Xf=jnp.full(n, Xf),
+        )
+        g = jax.tree_util.tree_map(lambda a: a[jnp.asarray(lanes)], gains)
+        out = engine.run(template, Scenarios(fault), lanes=g)
+        flags = out.synchronous if criterion == "synchronism" else out.metrics.stable
+        return np.asarray(flags, dtype=bool)
+
+    return stable_at
+
+
+def _scan(stable_at, scan: np.ndarray, n_lanes: int):
+    """Stage 1: every lane at every scan duration. Returns (all stable, active (a
+    stable-to-unstable bracket to bisect), bracket lo (stable), hi (unstable), the
+    stable islands after the first unstable duration) per lane."""
+    n_scan = len(scan)
+    lanes = np.repeat(np.arange(n_lanes), n_scan)
+    grid = stable_at(np.tile(scan, n_lanes), lanes).reshape(n_lanes, n_scan)
+    all_stable = grid.all(axis=1)
+    first_bad = np.where(all_stable, n_scan, np.argmin(grid, axis=1))
+    active = (first_bad > 0) & ~all_stable
+    lo = np.where(active, scan[np.maximum(first_bad - 1, 0)], np.nan)  # stable
+    hi = np.where(active, scan[np.minimum(first_bad, n_scan - 1)], np.nan)  # not
+    islands = [
+        _islands(grid[i, first_bad[i] :], scan[first_bad[i] :]) for i in range(n_lanes)
+    ]
+    return all_stable, active, lo, hi, islands
+
+
+def _bisect(stable_at, active, lo, hi, tol, steps, report):
+    """Stage 2: bisection of every active bracket [lo, hi] down to `tol`, all lanes
+    in each batched call (one batch shape: one compile). Returns (lo, hi)."""
+    everyone = np.arange(len(lo))
+    for step in range(steps):
+        todo = active & (hi - lo > tol * (1 + 1e-9))
+        if not todo.any():
+            break
+        mid = np.where(todo, 0.5 * (lo + hi), tol)
+        ok = stable_at(mid, everyone)
+        lo = np.where(todo & ok, mid, lo)
+        hi = np.where(todo & ~ok, mid, hi)
+        report(step + 2, steps + 1)
+    return lo, hi
+
+
+def _statuses(all_stable, active, islands) -> np.ndarray:
+    """The status of each lane (module docstring)."""
+    return np.where(
+        all_stable,
+        "exceeds_window",
+        np.where(
+            ~active,
+            "unstable_at_min",
+            np.where([bool(x) for x in islands], "non_monotone", "ok"),
+        ),
+    )
+
+
+def _set_results(names, n_locs, lo, hi, status, islands) -> dict[str, SetCCT]:
+    """name -> `SetCCT` from the per-lane brackets, statuses and islands."""
+
+    def numbers(v, st):
+        ok = ("ok", "non_monotone")
+        return [float(x) if s in ok else None for x, s in zip(v, st, strict=True)]
+
+    out = {}
+    for i, name in enumerate(names):
+        sl = slice(i * n_locs, (i + 1) * n_locs)
+        out[name] = SetCCT(
+            cct=numbers(lo[sl], status[sl]),
+            status=[str(s) for s in status[sl]],
+            islands=islands[sl],
+            first_unstable=numbers(hi[sl], status[sl]),
+        )
+    return out
+
+
 def critical_clearing_times(
     gain_sets: dict,
     plant: Plant | None = None,
@@ -199,7 +355,7 @@ def critical_clearing_times(
     rtol: float = 1e-6,
     atol: float = 1e-8,
     progress: Callable[[int, int], None] | None = None,
-) -> dict:
+) -> CCTResult:
     """CCT (s) of every gain set at every fault location (module docstring: scan,
     then bisection in the first unstable bracket). `progress(done, total)`, if given,
     is called before the scan and after each batched call.
@@ -209,17 +365,10 @@ def critical_clearing_times(
 
     `tol` (s): bisection tolerance and shortest duration tried; `scan_step` (s): the
     scan's spacing (at most; the window is split evenly); `criterion`: "settled" or
-    "synchronism"; `t_end` (s): horizon of every run, after `reclose_time`.
+    "synchronism"; `t_end` (s): horizon of every run, after `reclose_time`;
+    `max_steps`, `rtol`, `atol`: the adaptive solver's.
 
-    **Returns:** `{"fault_location": [...], "cct": [...], "status": [...],
-    "islands": [...], "criterion": ..., "window": t_reclose - t_fault, "tol": tol,
-    "t_end": t_end, "scan": [durations], "sets": {name: {"cct": [...],
-    "status": [...], "islands": [...], "first_unstable": [...]}}}`; `cct[j]` is the
-    largest duration (s) with every shorter one stable, where the status is "ok" or
-    "non_monotone", and None otherwise; `first_unstable[j]` the unstable duration
-    (s) at most `tol` beyond it that ended the bisection; `islands[j]` lists the
-    later stable [lo, hi] stretches of scan durations (s). With several gain sets
-    the top-level "cct", "status" and "islands" are tables name -> list.
+    **Returns:** a `CCTResult` (`.to_dict()`: the JSON layout).
     """
     plant = Plant() if plant is None else plant
     op = OperatingPoint() if op is None else op
@@ -234,102 +383,38 @@ def critical_clearing_times(
         t_end,
         criterion,
     )
-    if not gain_sets:
-        raise ParameterError("give at least one gain set")
-    names = list(gain_sets)
-    template, values = _lanes(gain_sets, names, adaptation)
-    pairs = [(i, lam) for i in range(len(names)) for lam in locs]
-    gains = jax.tree_util.tree_map(
-        lambda *xs: jnp.stack([jnp.asarray(x) for x in xs]),
-        *[values[i] for i, _ in pairs],
-    )
-    lam = np.asarray([p[1] for p in pairs])
-    n_lanes = len(pairs)
+    names, template, gains, lam = _stacked_lanes(gain_sets, locs, adaptation)
     engine = Engine(
         plant, op, init, t_end=t_end, rtol=rtol, atol=atol, max_steps=max_steps
     )
-
-    def stable_at(durations: np.ndarray, lanes: np.ndarray) -> np.ndarray:
-        """Stable flags of lanes[i] cleared after durations[i] (s), in one call."""
-        n = len(durations)
-        tf = jnp.full(n, fault_time)
-        fault = Fault(
-            t_fault=tf,
-            t_clear=tf + jnp.asarray(durations),
-            t_reclose=jnp.full(n, reclose_time),
-            lam=jnp.asarray(lam[lanes]),
-            Xf=jnp.full(n, fault_reactance),
-        )
-        g = jax.tree_util.tree_map(lambda a: a[jnp.asarray(lanes)], gains)
-        out = engine.run(template, Scenarios(fault), lanes=g)
-        flags = out.synchronous if criterion == "synchronism" else out.metrics.stable
-        return np.asarray(flags, dtype=bool)
-
+    stable_at = _verdicts(
+        engine,
+        template,
+        gains,
+        lam,
+        fault_time,
+        reclose_time,
+        fault_reactance,
+        criterion,
+    )
     scan = scan_durations(window, tol, scan_step)
-    n_scan = len(scan)
     steps = max(1, math.ceil(math.log2(max(np.max(np.diff(scan)), tol) / tol)))
     report = progress or (lambda done, total: None)
     report(0, steps + 1)
-    lanes = np.repeat(np.arange(n_lanes), n_scan)
-    grid = stable_at(np.tile(scan, n_lanes), lanes).reshape(n_lanes, n_scan)
+    all_stable, active, lo, hi, islands = _scan(stable_at, scan, len(lam))
     report(1, steps + 1)
-    all_stable = grid.all(axis=1)
-    first_bad = np.where(all_stable, n_scan, np.argmin(grid, axis=1))
-    active = (first_bad > 0) & ~all_stable
-    lo = np.where(active, scan[np.maximum(first_bad - 1, 0)], np.nan)  # stable
-    hi = np.where(active, scan[np.minimum(first_bad, n_scan - 1)], np.nan)  # not
-    islands = [
-        _islands(grid[i, first_bad[i] :], scan[first_bad[i] :]) for i in range(n_lanes)
-    ]
-    everyone = np.arange(n_lanes)  # one batch shape for every step: one compile
-    for step in range(steps):
-        todo = active & (hi - lo > tol * (1 + 1e-9))
-        if not todo.any():
-            break
-        mid = np.where(todo, 0.5 * (lo + hi), tol)
-        ok = stable_at(mid, everyone)
-        lo = np.where(todo & ok, mid, lo)
-        hi = np.where(todo & ~ok, mid, hi)
-        report(step + 2, steps + 1)
+    lo, hi = _bisect(stable_at, active, lo, hi, tol, steps, report)
     report(steps + 1, steps + 1)
-    status = np.where(
-        all_stable,
-        "exceeds_window",
-        np.where(
-            ~active,
-            "unstable_at_min",
-            np.where([bool(x) for x in islands], "non_monotone", "ok"),
-        ),
+    status = _statuses(all_stable, active, islands)
+    return CCTResult(
+        fault_location=locs,
+        fault_time=fault_time,
+        reclose_time=reclose_time,
+        fault_reactance=fault_reactance,
+        criterion=criterion,
+        t_end=t_end,
+        window=window,
+        tol=tol,
+        scan=[float(d) for d in scan],
+        sets=_set_results(names, len(locs), lo, hi, status, islands),
     )
-    result = {
-        "fault_location": locs,
-        "fault_time": fault_time,
-        "reclose_time": reclose_time,
-        "fault_reactance": fault_reactance,
-        "criterion": criterion,
-        "t_end": t_end,
-        "window": window,
-        "tol": tol,
-        "scan": [float(d) for d in scan],
-        "sets": {},
-    }
-    for i, name in enumerate(names):
-        sl = slice(i * len(locs), (i + 1) * len(locs))
-        result["sets"][name] = {
-            "cct": [
-                float(v) if s in ("ok", "non_monotone") else None
-                for v, s in zip(lo[sl], status[sl], strict=True)
-            ],
-            "status": [str(s) for s in status[sl]],
-            "islands": islands[sl],
-            "first_unstable": [
-                float(v) if s in ("ok", "non_monotone") else None
-                for v, s in zip(hi[sl], status[sl], strict=True)
-            ],
-        }
-    sets = result["sets"]
-    for key in ("cct", "status", "islands"):
-        result[key] = (
-            sets[names[0]][key] if len(names) == 1 else {n: sets[n][key] for n in names}
-        )
-    return result

@@ -27,6 +27,7 @@ evolution law's boundary layer (tests/test_tuning.py, tests/test_gradients.py).
 
 from __future__ import annotations
 
+import warnings
 from typing import Literal
 
 import diffrax as dfx
@@ -36,38 +37,35 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Bool, Float, Int
 
-from ._fixed import solve_fixed
-from ._stepping import RigidSteps
-from ._validate import (
-    is_concrete,
-    require_count,
-    require_in_horizon,
-    require_positive,
-    require_samples,
-    require_x64,
-)
-from .closed_loop import (
+from ._closed_loop import (
     ClosedLoop,
-    as_controller,
     closed_loop_vector_field,
     healthy,
     initial_state,
 )
-from .controllers import AbstractController, Synergetic
-from .network import prefault_stage, stage_at
-from .parameters import (
+from ._fixed import solve_fixed
+from ._network import prefault_stage, stage_at
+from ._options import DEFAULT_MAX_STEPS, SaveOptions, SolverOptions
+from ._parameters import (
     Fault,
-    Gains,
     InitialEstimates,
     OperatingPoint,
     ParameterError,
     Plant,
 )
-from .plant import apply_limits, equilibrium_state, sincos, terminal_voltage
+from ._plant import apply_limits, equilibrium_state, sincos, terminal_voltage
+from ._stepping import RigidSteps
+from ._validate import (
+    is_concrete,
+    require_in_horizon,
+    require_samples,
+    require_x64,
+)
+from .controllers import AbstractController, Gains, as_controller
 
 __all__ = ["Trajectory", "simulate", "is_stable", "DEFAULT_DELTA_BAND"]
 
-DEFAULT_DELTA_BAND = 0.01  # rad, MODEL.md section 4
+DEFAULT_DELTA_BAND = 0.01  # rad, docs/model.md section 4
 
 Series = Float[Array, "*batch n"]
 Scalar = Float[Array, "*batch"]
@@ -110,7 +108,7 @@ class Trajectory(eqx.Module):
 
 
 def is_stable(lost_sync, delta_end, delta_e, delta_band: float = DEFAULT_DELTA_BAND):
-    """MODEL.md section 4: no loss of synchronism (nor a run cut short: pass
+    """docs/model.md section 4: no loss of synchronism (nor a run cut short: pass
     `lost_sync | budget_exhausted`), and delta back within `delta_band` (rad) of
     delta_e at t_end."""
     return (~lost_sync) & (jnp.abs(delta_end - delta_e) <= delta_band)
@@ -189,17 +187,8 @@ def _resolve_controller(gains, adaptation) -> AbstractController:
             "'realizable'"
         )
     gains = Gains() if gains is None else gains
-    controller = as_controller(gains, adaptation != "realizable")
-    if isinstance(controller, Synergetic):
-        if adaptation is not None:
-            controller = Synergetic(
-                controller.gains,
-                adaptation == "oracle",
-                controller.projection,
-                controller.phi_layer,
-            )
-        controller = controller.with_static_alpha()
-    return controller
+    controller = as_controller(gains).with_adaptation(adaptation)
+    return controller.specialized()
 
 
 @eqx.filter_jit
@@ -302,6 +291,51 @@ def _simulate(
     )
 
 
+_LEGACY = (
+    "t_end",
+    "dt_save",
+    "method",
+    "rtol",
+    "atol",
+    "dt",
+    "max_steps",
+    "checkpoints",
+)
+
+
+def _legacy_options(solver, legacy: dict) -> tuple[SolverOptions, SaveOptions]:
+    """The option objects of the keyword arguments `simulate` took before 0.2
+    (`solver` as the string "adaptive"/"fixed", `t_end`, `dt_save`, `method`,
+    `rtol`, `atol`, `dt`, `max_steps`, `checkpoints`): a deprecated shim, kept for
+    one release."""
+    for k in legacy:
+        if k not in _LEGACY:
+            raise TypeError(f"simulate() got an unexpected keyword argument {k!r}")
+    warnings.warn(
+        "simulate(t_end=, dt_save=, rtol=, ..., solver='fixed') is deprecated: pass "
+        "solver=SolverOptions(...) and save=SaveOptions(...)",
+        DeprecationWarning,
+        stacklevel=3,
+    )
+    if isinstance(solver, SolverOptions):
+        raise TypeError(
+            "simulate(): give solver=SolverOptions(...) or the old solver keywords, "
+            "not both"
+        )
+    max_steps = legacy.get("max_steps")
+    sopts = SolverOptions(
+        "adaptive" if solver is None else solver,
+        legacy.get("method", "tsit5"),
+        legacy.get("rtol", 1e-6),
+        legacy.get("atol", 1e-8),
+        DEFAULT_MAX_STEPS if max_steps is None else max_steps,
+        legacy.get("dt", 1e-3),
+        legacy.get("checkpoints"),
+    )
+    save = SaveOptions(legacy.get("t_end", 10.0), legacy.get("dt_save", 0.01))
+    return sopts, save
+
+
 def simulate(
     gains: Gains | AbstractController | None = None,
     fault: Fault | None = None,
@@ -310,24 +344,18 @@ def simulate(
     op: OperatingPoint | None = None,
     init: InitialEstimates | None = None,
     adaptation: Literal["oracle", "realizable"] | None = None,
-    t_end: float = 10.0,
-    dt_save: float = 0.01,
-    solver: Literal["adaptive", "fixed"] = "adaptive",
-    method: Literal["tsit5", "dopri5", "dopri8"] = "tsit5",
-    rtol: float = 1e-6,
-    atol: float = 1e-8,
-    dt: float = 1e-3,
-    max_steps: int | None = None,
+    solver: SolverOptions | None = None,
+    save: SaveOptions | None = None,
     delta_band: float = DEFAULT_DELTA_BAND,
     input_smoothing: float = 0.0,
-    checkpoints: int | None = None,
+    **legacy,
 ) -> Trajectory:
-    """Simulate the closed loop from the operating point over [0, t_end] (s).
+    """Simulate the closed loop from the operating point over [0, save.t_end] (s).
 
     **Arguments:**
 
-    - `gains`: the paper's `Gains` (the AFTSC/ASC law, `smibjax.controllers.Synergetic`)
-      or any controller (`smibjax.controllers`; default: the paper's AFTSC gains).
+    - `gains`: the paper's `Gains` (the AFTSC/ASC law, `smibjax.Synergetic`) or any
+      controller (`smibjax.controllers`; default: the paper's AFTSC gains).
     - `fault`, `plant`, `op`, `init`: parameter sets (defaults: the paper's fault, the
       paper plant, operating point and initial estimates). Any of them may carry
       arrays; vmap `simulate` over them for batches.
@@ -335,70 +363,36 @@ def simulate(
       theta in its k-terms; the default for `Gains`) or `"realizable"` (without them);
       None keeps a `Synergetic` controller's own setting. Other controllers have no
       adaptation and ignore it.
-    - `t_end`, `dt_save`: horizon and sampling interval of the returned arrays (s).
-    - `solver`: `"adaptive"` (PID step-size control with `rtol`, `atol`) or `"fixed"`
-      (steps of `dt` (s) on the grid k dt, with the sample times and the switch times
-      added as grid points, so that no step straddles a switch and every sample is a
-      step end). `method`: the Runge-Kutta method.
-    - `max_steps`: adaptive solver step budget; a run that exhausts it ends with
-      `budget_exhausted` (not stable, not lost: raise the budget; the fixed grid needs
-      none). Default 50,000: a 10 s AFTSC run takes ~4k steps at alpha = 5/7, 34k at
-      alpha = 0.6 and more as alpha -> 1/2.
+    - `solver`: a `SolverOptions` (default: adaptive Tsit5, rtol 1e-6, atol 1e-8,
+      50,000 steps).
+    - `save`: a `SaveOptions`, the horizon and sampling interval of the returned
+      arrays (default: 10 s sampled every 0.01 s).
     - `delta_band`: the band (rad) that delta must be back in at t_end to be stable.
     - `input_smoothing`: 0 for the hard input limiter; > 0 (pu) for a soft one that
       keeps gradients beyond the limits (for training losses).
-    - `checkpoints`: solver states kept for the reverse pass. Adaptive: diffrax's
-      `RecursiveCheckpointAdjoint`; None: about log2(max_steps), the least memory and
-      the most recomputation; more trade memory (about 1 kB per checkpoint per
-      scenario) for speed. Fixed: one state per block of steps, each block recomputed
-      once in the reverse pass; None: about sqrt(steps) blocks. Values are
-      unaffected.
+
+    The keywords of 0.1 (`t_end`, `dt_save`, `method`, `rtol`, `atol`, `dt`,
+    `max_steps`, `checkpoints`, and `solver` as a string) still work, with a
+    `DeprecationWarning`, for one release.
 
     **Returns:** a `Trajectory`.
     """
     require_x64()
+    if legacy or isinstance(solver, str):
+        solver, save = _legacy_options(solver, legacy)
+    solver = SolverOptions() if solver is None else solver
+    save = SaveOptions() if save is None else save
     controller = _resolve_controller(gains, adaptation)
     fault = Fault() if fault is None else fault
     plant = Plant() if plant is None else plant
     op = OperatingPoint() if op is None else op
     init = InitialEstimates() if init is None else init
-    box = getattr(controller, "projection", None)
-    if box is not None and is_concrete(init.th1, init.th2, box.lo, box.hi):
-        th0 = np.stack(
-            np.broadcast_arrays(np.asarray(init.th1), np.asarray(init.th2)), -1
-        )
-        if not box.contains(th0):
-            raise ParameterError(
-                f"initial estimates (th1, th2) = ({np.asarray(init.th1)}, "
-                f"{np.asarray(init.th2)}) are not allowed: must lie in the projection "
-                f"box [{np.asarray(box.lo).tolist()}, {np.asarray(box.hi).tolist()}]"
-            )
-    if solver not in ("adaptive", "fixed"):
-        raise ParameterError(
-            f"solver = {solver!r} is not allowed: must be 'adaptive' or 'fixed'"
-        )
-    if method not in _SOLVERS:
-        raise ParameterError(
-            f"method = {method!r} is not allowed: must be one of {sorted(_SOLVERS)}"
-        )
-    for name, v in (
-        ("t_end", t_end),
-        ("dt_save", dt_save),
-        ("dt", dt),
-        ("rtol", rtol),
-        ("atol", atol),
-    ):
-        require_positive(name, v)
-    if dt_save > t_end:
-        raise ParameterError(
-            f"dt_save = {dt_save:g} is not allowed: must be <= t_end = {t_end:g}"
-        )
-    if max_steps is None:
-        max_steps = 50_000
-    require_count("max_steps", max_steps)
+    controller.check_estimates(init)
+    t_end, dt_save = save.t_end, save.dt_save
     require_samples(t_end, dt_save)
     if is_concrete(fault.t_fault, fault.t_clear):
         require_in_horizon(fault.t_fault, fault.t_clear, t_end)
+    checkpoints = solver.checkpoints
     return _simulate(
         controller,
         fault,
@@ -407,12 +401,12 @@ def simulate(
         init,
         t_end=float(t_end),
         dt_save=float(dt_save),
-        solver=solver,
-        method=method,
-        rtol=float(rtol),
-        atol=float(atol),
-        dt=float(dt),
-        max_steps=int(max_steps),
+        solver=solver.kind,
+        method=solver.method,
+        rtol=float(solver.rtol),
+        atol=float(solver.atol),
+        dt=float(solver.dt),
+        max_steps=int(solver.max_steps),
         delta_band=float(delta_band),
         input_smoothing=float(input_smoothing),
         checkpoints=None if checkpoints is None else int(checkpoints),

@@ -12,7 +12,7 @@ import jax
 import jax.numpy as jnp
 from jaxtyping import Array, Float
 
-from .simulate import Trajectory
+from ._simulate import Trajectory
 
 __all__ = [
     "soft_settling_time",

@@ -1,4 +1,4 @@
-"""Exact performance metrics of a sampled trajectory (MODEL.md section 4).
+"""Exact performance metrics of a sampled trajectory (docs/model.md section 4).
 
 All functions are pure jnp, so they jit and vmap with `simulate`. Settling times are
 measured from fault inception: the last time after t_fault at which the signal is
@@ -14,7 +14,7 @@ from typing import NamedTuple
 import jax.numpy as jnp
 from jaxtyping import Array, Bool, Float
 
-from .simulate import DEFAULT_DELTA_BAND, Trajectory, is_stable
+from ._simulate import DEFAULT_DELTA_BAND, Trajectory, is_stable
 
 __all__ = [
     "Metrics",

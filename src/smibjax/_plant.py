@@ -1,4 +1,4 @@
-"""The SMIB + SVC plant in physical coordinates (MODEL.md section 1).
+"""The SMIB + SVC plant in physical coordinates (docs/model.md section 1).
 
 State z = (delta, domega, E, B): rotor angle (rad), speed deviation (rad/s), transient
 EMF E' (pu) and SVC net susceptance (pu). Inputs u = (u_f, u_r): field voltage and SVC
@@ -11,8 +11,8 @@ import jax
 import jax.numpy as jnp
 from jaxtyping import Array, Float
 
-from .network import Stage, prefault_stage
-from .parameters import OperatingPoint, Plant
+from ._network import Stage, prefault_stage
+from ._parameters import OperatingPoint, Plant
 
 __all__ = [
     "Trig",
