@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from .._cct import check_options, critical_clearing_times, lane_kind
 from .._files import check_new_file, write_json
+from .grid import add_case_options
 from .options import (
     CLIError,
     add_common,
@@ -65,6 +66,18 @@ def add_parser(sub) -> None:
     )
     c.add_argument("--out", metavar="FILE.json", help="write the CCTs (+ a .png plot)")
     add_force(c)
+    add_case_options(c, events=False)
+    c.add_argument(
+        "--fault-buses",
+        default="all",
+        help="with --case: the fault buses, e.g. 7,8,9 (default all)",
+    )
+    c.add_argument(
+        "--cct-max",
+        type=positive,
+        default=1.0,
+        help="with --case: the longest fault duration tried (s, default 1)",
+    )
     c.set_defaults(func=run, flags=c.flags)
 
 
@@ -155,6 +168,10 @@ def progress_bar(desc: str = "cct scan + bisection"):
 
 
 def run(args) -> int:
+    if args.case:
+        from .grid import run_cct
+
+        return run_cct(args)
     check_args(args)
     out = png = None
     if args.out:

@@ -402,7 +402,12 @@ def run_montecarlo(args) -> int:
     from ..grid.simulate import simulate_batch
 
     out = Path(args.out) if args.out else None
-    if out and out.exists() and any(out.iterdir()) and not args.force:
+    if (
+        out
+        and out.exists()
+        and any(out.iterdir())
+        and not getattr(args, "force", False)
+    ):
         raise CLIError(f"--out {out}: the folder is not empty (use --force)")
     case, op, pf = load(args)
     try:

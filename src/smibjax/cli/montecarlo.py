@@ -10,6 +10,7 @@ from pathlib import Path
 from .._montecarlo import MonteCarloSpec
 from .._parameters import PLANT_NAMES, ParameterError
 from ..controllers import describe
+from .grid import add_case_options, add_montecarlo_options
 from .options import (
     CLIError,
     add_common,
@@ -61,6 +62,8 @@ def add_parser(sub) -> None:
     add_tolerances(m)
     add_mc_options(m, 1000)
     m.add_argument("--out", metavar="DIR", help="output folder (default: runs/...)")
+    add_case_options(m, events=False)
+    add_montecarlo_options(m)
     m.set_defaults(func=run, flags=m.flags)
 
 
@@ -110,6 +113,10 @@ def run_folder(spec, out: Path, resume: bool, runner, title: str):
 
 
 def run(args) -> int:
+    if args.case:
+        from .grid import run_montecarlo as run_case
+
+        return run_case(args)
     params, plant, op, init = build_from_args(args, complete=True)
     spec = spec_from_args(args, params, plant, op, init, read_dist(args.dist))
     if args.resume and not args.out:

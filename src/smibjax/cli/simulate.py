@@ -16,6 +16,7 @@ from .._options import SaveOptions
 from .._parameters import Fault
 from .._simulate import simulate
 from ..controllers import describe
+from .grid import add_case_options
 from .options import (
     CLIError,
     add_common,
@@ -61,10 +62,15 @@ def add_parser(sub) -> None:
         help="plot every signal, in the format of the suffix (.png, .pdf, .svg, ...)",
     )
     add_force(s)
+    add_case_options(s)
     s.set_defaults(func=run, flags=s.flags)
 
 
 def run(args) -> int:
+    if args.case:
+        from .grid import run_simulate
+
+        return run_simulate(args)
     out, plot = _outputs(args)
     gains, plant, op, init = build_from_args(args)
     fault = Fault(
