@@ -67,6 +67,8 @@ def load_case(name_or_raw: str | Path, dyr: str | Path | None = None) -> Case:
         name = str(name_or_raw)
     else:
         if dyr is None:
+            if not (str(name_or_raw).endswith(".raw") or Path(name_or_raw).is_file()):
+                case_files(str(name_or_raw))  # raises: not a built-in name
             raise CaseError(f"{name_or_raw}: a raw file needs its dyr file (--dyr)")
         raw_path, dyr_path = Path(name_or_raw), Path(dyr)
         name = raw_path.stem

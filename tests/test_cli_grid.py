@@ -1,0 +1,93 @@
+"""The commands on a multi-machine case (`--case`): outputs that name what they hold,
+and bad input as one line with exit 2 and nothing written."""
+
+import json
+
+import numpy as np
+import pytest
+
+from smibjax.cli import main
+
+pytestmark = pytest.mark.xdist_group("grid")
+
+
+def test_simulate_a_case_writes_named_arrays_and_a_plot(tmp_path, capsys):
+    out, plot = tmp_path / "run.npz", tmp_path / "run.png"
+    argv = [
+        "simulate",
+        "--case",
+        "smib-gencls",
+        "--fault-bus",
+        "2",
+        "--fault-time",
+        "0.2",
+    ]
+    argv += [
+        "--clear-time",
+        "0.3",
+        "--t-end",
+        "2",
+        "--out",
+        str(out),
+        "--plot",
+        str(plot),
+    ]
+    assert main(argv) == 0
+    text = capsys.readouterr().out
+    assert text.startswith("stable")
+    a = np.load(out)
+    assert list(a["gen"]) == ["1:1", "2:1", "3:1"]
+    assert list(a["bus"]) == [1, 2, 3]
+    assert a["delta"].shape == (201, 3) and a["v_bus"].shape == (201, 3)
+    meta = json.loads(str(a["meta"]))
+    assert meta["case"] == "smib-gencls" and meta["stable"] is True
+    # the faulted bus is at zero during the fault, the machine accelerates
+    k = int(np.searchsorted(a["t"], 0.25))
+    assert abs(a["v_bus"][k, 1]) < 1e-9 and a["omega"][k, 0] > 0
+    assert plot.stat().st_size > 10_000
+
+
+@pytest.mark.parametrize(
+    "argv, needle",
+    [
+        (["--case", "nope", "--fault-bus", "1"], "case 'nope' is not built in"),
+        (["--case", "smib-gencls", "--fault-bus", "99"], "bus 99 is not in the system"),
+        (["--case", "smib-gencls", "--fault-line", "2-9"], "branch 2-9 does not exist"),
+        (["--case", "smib-gencls", "--fault-line", "x"], "expected FROM-TO[:CKT]"),
+        (["--case", "smib-gencls"], "a --case run needs an event"),
+        (
+            ["--case", "smib-gencls", "--fault-bus", "2", "--clear-time", "0.4"],
+            "must satisfy 0 <= fault < clear",
+        ),
+        (["--case", "smib-gencls", "--trip-gen", "7"], "no generator 7:1"),
+        (["--case", "x.raw"], "a raw file needs its dyr file"),
+        (
+            ["--case", "smib-gencls", "--param", "GENCLS.Q=1", "--fault-bus", "2"],
+            "no parameter",
+        ),
+        (
+            ["--case", "smib-gencls", "--param", "IEEEST.KS=1", "--fault-bus", "2"],
+            "no IEEEST",
+        ),
+        (
+            ["--case", "smib-gencls", "--load-factor", "-1", "--fault-bus", "2"],
+            "must be > 0",
+        ),
+        (
+            ["--case", "smib-gencls", "--load-factor", "40", "--fault-bus", "2"],
+            "did not converge",
+        ),
+    ],
+)
+def test_bad_case_input_is_one_line(argv, needle, tmp_path, capsys):
+    out = tmp_path / "x.npz"
+    assert main(["simulate", "--fault-time", "0.5", *argv, "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err[-1].startswith("smibjax: error: ") and needle in err[-1], err
+    assert not out.exists()
+
+
+def test_a_trip_that_islands_is_refused(tmp_path, capsys):
+    argv = ["simulate", "--case", "smib-gencls", "--trip-line", "1-2"]
+    assert main(argv) == 2
+    assert "islands the system" in capsys.readouterr().err
