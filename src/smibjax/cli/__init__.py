@@ -21,7 +21,7 @@ __all__ = ["main", "run"]
 
 def _parser():
     from .. import __version__
-    from . import cct, compare, montecarlo, reproduce, simulate
+    from . import cct, compare, modes, montecarlo, reproduce, simulate
     from .options import Parser
 
     top = Parser(
@@ -33,7 +33,7 @@ def _parser():
     )
     top.add_argument("--version", action="version", version=f"smibjax {__version__}")
     sub = top.add_subparsers(dest="command", required=True, parser_class=Parser)
-    for command in (simulate, reproduce, montecarlo, cct, compare):
+    for command in (simulate, reproduce, montecarlo, cct, compare, modes):
         command.add_parser(sub)
     return top
 
