@@ -317,6 +317,18 @@ def _plot_locus(path, param, values, tracks):
     save_figure(fig, path)
 
 
+def _assign(lam, last):
+    """The eigenvalues of `lam` (upper half plane) matched one to one to `last`
+    (minimum total distance), so that two tracked modes never take the same one."""
+    from scipy.optimize import linear_sum_assignment
+
+    cand = lam[lam.imag >= 0]
+    rows, cols = linear_sum_assignment(np.abs(last[:, None] - cand[None, :]))
+    out = np.empty(len(last), dtype=complex)
+    out[rows] = cand[cols]
+    return out
+
+
 def _sweep(args, case, sets, param, values, outs):
     from ..grid.modes import damping_ratios, linearize
     from ..grid.params import ParamError, get_param, set_params
@@ -332,7 +344,8 @@ def _sweep(args, case, sets, param, values, outs):
     prev = np.array([m.eigenvalue for m in ref])
     order = np.argsort(np.abs(values - float(np.mean(get_param(case, param)))))
     tracks = np.zeros((len(values), len(ref)), dtype=complex)
-    # Follow each mode from the value nearest the nominal outwards, by continuity.
+    # Follow each mode from the value nearest the nominal outwards, by continuity
+    # (a one-to-one assignment to the previous value's eigenvalues).
     start = int(order[0])
     for direction in (range(start, len(values)), range(start, -1, -1)):
         last = prev
@@ -340,9 +353,9 @@ def _sweep(args, case, sets, param, values, outs):
             c = set_params(case, {param: float(values[i])})
             op = _operating(c, args.load_factor)
             lam = np.linalg.eigvals(linearize(c, op, inputs=(), outputs=()).A)
-            pick = [lam[np.argmin(np.abs(lam - r))] for r in last]
+            pick = _assign(lam, last)
             tracks[i] = pick
-            last = np.array(pick)
+            last = pick
     print(f"{param}: {len(values)} values from {values[0]:g} to {values[-1]:g}")
     head = f"{param:>14}  " + "  ".join(f"{n:>24}" for n in names)
     print(head)

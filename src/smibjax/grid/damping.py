@@ -40,7 +40,9 @@ inf/NaN. How the loss stays well defined:
   eigenvalue changes): the loss is then continuous only if both have the same
   damping, and its gradient jumps. `pick_gap` returns the distance ratio of the
   nearest to the second-nearest eigenvalue per reference mode so that a caller can
-  see a swap coming (ratio near 1).
+  see a swap coming (ratio near 1). Two reference modes can pick the same
+  eigenvalue only when they are closer to it than to their own; refresh the
+  reference before the modes move that far.
 The squared hinge has a continuous first derivative at zeta = target (both sides
 give 0), so the loss is C^1 in zeta.
 """
