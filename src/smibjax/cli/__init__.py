@@ -1,11 +1,11 @@
 """The command line and everything at the edge of smibjax: `python -m smibjax
-{simulate,reproduce,montecarlo,cct,compare} ...`, run folders, files and plots.
+{simulate,reproduce,montecarlo,cct,compare,modes} ...`, run folders, files and plots.
 
 Layout: `process` (what an entry point sets up: devices, float64, equinox's error
 mode, the compilation cache), `options` (the shared parser and options, also the
 tuner's), `files` (reading TOML/JSON and gains files, atomic writes), one module per
-command (`simulate`, `montecarlo`, `cct`, `compare`, `reproduce`), `runs` (Monte
-Carlo run folders and resume), `cluster` (Dask), `plotting` and `report`.
+command (`simulate`, `montecarlo`, `cct`, `compare`, `reproduce`, `modes`), `runs`
+(Monte Carlo run folders and resume), `cluster` (Dask), `plotting` and `report`.
 
 Bad input ends with one line on stderr (`smibjax: error: ...`) and exit status 2; no
 traceback. Importing this package loads neither JAX nor equinox: `main` configures
