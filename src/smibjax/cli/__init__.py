@@ -1,11 +1,11 @@
 """The command line and everything at the edge of smibjax: `python -m smibjax
-{simulate,reproduce,montecarlo,cct,compare} ...`, run folders, files and plots.
+{simulate,reproduce,montecarlo,cct,compare,modes} ...`, run folders, files and plots.
 
 Layout: `process` (what an entry point sets up: devices, float64, equinox's error
 mode, the compilation cache), `options` (the shared parser and options, also the
 tuner's), `files` (reading TOML/JSON and gains files, atomic writes), one module per
-command (`simulate`, `montecarlo`, `cct`, `compare`, `reproduce`), `runs` (Monte
-Carlo run folders and resume), `cluster` (Dask), `plotting` and `report`.
+command (`simulate`, `montecarlo`, `cct`, `compare`, `reproduce`, `modes`), `runs`
+(Monte Carlo run folders and resume), `cluster` (Dask), `plotting` and `report`.
 
 Bad input ends with one line on stderr (`smibjax: error: ...`) and exit status 2; no
 traceback. Importing this package loads neither JAX nor equinox: `main` configures
@@ -21,7 +21,7 @@ __all__ = ["main", "run"]
 
 def _parser():
     from .. import __version__
-    from . import cct, compare, montecarlo, reproduce, simulate
+    from . import cct, compare, modes, montecarlo, reproduce, simulate
     from .options import Parser
 
     top = Parser(
@@ -33,7 +33,7 @@ def _parser():
     )
     top.add_argument("--version", action="version", version=f"smibjax {__version__}")
     sub = top.add_subparsers(dest="command", required=True, parser_class=Parser)
-    for command in (simulate, reproduce, montecarlo, cct, compare):
+    for command in (simulate, reproduce, montecarlo, cct, compare, modes):
         command.add_parser(sub)
     return top
 

@@ -16,15 +16,23 @@ so that each mode's participations sum to 1 (Kundur section 12.2). A mode is
 (> 0.5) and it oscillates (0.05 to 5 Hz); it is *inter-area* when the machines that
 take part (speed mode shape at least 20% of the largest) swing in two opposing groups
 whose areas (the raw file's bus areas) are disjoint, or, in a one-area system, when
-each opposing group has at least two machines; *local* otherwise. Zero modes (|lambda|
+each opposing group has at least two machines; *common* when two or more machines
+take part all in phase (no opposing group: the whole system swinging against its
+controllers, e.g. a slow speed-governor or washout mode); *local* otherwise. Zero modes (|lambda|
 < 1e-6 1/s... see `zero_tol`) of a system without an infinite bus, the absolute
 angle and, without governors or damping, the common speed, are reported as
-`kind = "zero"`, not as instabilities.
+`kind = "zero"`, not as instabilities; each zero eigenvalue is its own mode (a
+double zero of an undamped system without an infinite bus is two modes: its
+numerical pair, ~1e-8 apart, is not a conjugate pair). A zero mode whose
+participation sits on a state that never moves (its row of A is identically zero: a
+disabled filter stage, an infinite bus's angle) has `kind = "frozen"`.
+The damping ratio of a zero or frozen mode is reported as NaN (undefined).
 """
 
 from __future__ import annotations
 
 import dataclasses
+import functools
 
 import jax
 import jax.numpy as jnp
@@ -33,7 +41,18 @@ import numpy as np
 from .loop import Case, Operating, evaluate, gen_names, state_labels
 from .network import stage_configs, stage_matrices
 
-__all__ = ["Linearization", "Mode", "linearize", "modes", "damping_ratios"]
+__all__ = [
+    "Linearization",
+    "Mode",
+    "linearize",
+    "modes",
+    "state_matrix",
+    "damping_ratios",
+    "participation",
+    "transfer_function",
+    "dominant_machines",
+    "check_equilibrium",
+]
 
 INPUTS = ("Efd", "Pm", "Vs")
 OUTPUTS = ("delta", "omega", "Pe", "Vt", "Efd")
@@ -69,19 +88,24 @@ def state_matrix(case: Case, op: Operating):
     return jax.jacfwd(lambda y: evaluate(case, op, mats, 0, y)[0])(op.y0)
 
 
-def linearize(
-    case: Case, op: Operating, inputs=INPUTS, outputs=OUTPUTS
-) -> Linearization:
-    """The state-space model at the operating point (see the module docstring)."""
+@functools.partial(jax.jit, static_argnums=(2, 3))
+def _jacobians(case: Case, op: Operating, inputs, outputs):
     mats = stage_matrices(op.grid, stage_configs(op.grid, ()))
-    n_gen = case.n_gen
-    u0 = jnp.zeros(len(inputs) * n_gen)
+    u0 = jnp.zeros(len(inputs) * case.n_gen)
 
     def fm(y, u):
         return _f_and_m(case, op, mats, y, u, inputs, outputs)
 
-    (A, C) = jax.jacfwd(fm, argnums=0)(op.y0, u0)
-    (B, D) = jax.jacfwd(fm, argnums=1)(op.y0, u0)
+    A, C = jax.jacfwd(fm, argnums=0)(op.y0, u0)
+    B, D = jax.jacfwd(fm, argnums=1)(op.y0, u0)
+    return A, B, C, D
+
+
+def linearize(
+    case: Case, op: Operating, inputs=INPUTS, outputs=OUTPUTS
+) -> Linearization:
+    """The state-space model at the operating point (see the module docstring)."""
+    A, B, C, D = _jacobians(case, op, tuple(inputs), tuple(outputs))
     names = gen_names(case)
     return Linearization(
         A=np.asarray(A),
@@ -114,6 +138,7 @@ class Mode:
 
 def damping_ratios(eigenvalues):
     """zeta = -Re(lambda) / |lambda| (works on JAX arrays; 1 for lambda = 0)."""
+    eigenvalues = jnp.asarray(eigenvalues)
     mag = jnp.abs(eigenvalues)
     return jnp.where(mag > 0, -jnp.real(eigenvalues) / jnp.where(mag > 0, mag, 1), 1.0)
 
@@ -125,7 +150,11 @@ def participation(R, L):
 
 
 def modes(case: Case, lin: Linearization, zero_tol: float = 1e-5) -> list[Mode]:
-    """Every mode of `lin.A` (one per conjugate pair: the one with omega >= 0)."""
+    """Every mode of `lin.A`: one per conjugate pair (the one with omega > 0), and
+    every real eigenvalue, zero ones included (see the module docstring). Sorted:
+    electromechanical modes first, least damped first; then the others by
+    damping; zero and frozen modes last. `zero_tol`: |lambda| (1/s) below which an
+    eigenvalue is a zero mode."""
     lam, R = np.linalg.eig(lin.A)
     L = np.linalg.inv(R)
     P = participation(R, L)
@@ -134,13 +163,13 @@ def modes(case: Case, lin: Linearization, zero_tol: float = 1e-5) -> list[Mode]:
     areas = np.asarray(case.system.buses.area)[np.asarray(case.layout.gen_bus)]
     speed_rows = {lab[1]: k for k, lab in enumerate(labels) if lab[2] == "omega"}
     mech = np.array([lab[2] in ("delta", "omega") for lab in labels])
-    scale = max(1.0, float(np.max(np.abs(lam))))
+    still = ~np.any(lin.A != 0, axis=1)  # states whose derivative is identically 0
     out = []
     for k in range(len(lam)):
-        if lam[k].imag < -1e-9 * scale:
+        zero = abs(lam[k]) < zero_tol
+        if not zero and lam[k].imag < 0:
             continue
-        f = abs(lam[k].imag) / (2 * np.pi)
-        zeta = float(damping_ratios(jnp.asarray(lam[k])))
+        f = 0.0 if zero else abs(lam[k].imag) / (2 * np.pi)
         em_share = float(P[mech, k].sum())
         shape = {}
         if speed_rows:
@@ -155,12 +184,13 @@ def modes(case: Case, lin: Linearization, zero_tol: float = 1e-5) -> list[Mode]:
                 for g, v in zip(names, vec, strict=True)
                 if g in speed_rows
             }
-        if abs(lam[k]) < zero_tol:
-            kind = "zero"
+        if zero:
+            kind = "frozen" if float(P[still, k].sum()) > 0.5 else "zero"
         elif em_share > 0.5 and 0.05 <= f <= 5.0:
             kind = "electromechanical"
         else:
             kind = "other"
+        zeta = float("nan") if zero else float(damping_ratios(lam[k]))
         scope = _scope(shape, names, areas) if kind == "electromechanical" else ""
         order = np.argsort(-P[:, k])[:5]
         dominant = tuple(
@@ -180,8 +210,27 @@ def modes(case: Case, lin: Linearization, zero_tol: float = 1e-5) -> list[Mode]:
                 shape=shape,
             )
         )
-    out.sort(key=lambda m: (m.kind != "electromechanical", m.damping))
+    rank = {"electromechanical": 0, "other": 1, "zero": 2, "frozen": 3}
+    out.sort(key=lambda m: (rank[m.kind], np.nan_to_num(m.damping, nan=2.0)))
     return out
+
+
+def dominant_machines(mode: Mode, share: float = 0.2) -> tuple[str, ...]:
+    """The machines ('bus:id') whose speed mode shape is at least `share` of the
+    largest, largest first."""
+    items = sorted(mode.shape.items(), key=lambda kv: -abs(kv[1]))
+    return tuple(g for g, v in items if abs(v) >= share)
+
+
+def transfer_function(lin: Linearization, s, output, input) -> complex:
+    """G(s) = C_i (sI - A)^-1 B_j + D_ij for the output ('Vt', '1:1') and the input
+    ('Efd', '1:1') named as in `lin.outputs` / `lin.inputs`; `s` in 1/s (j omega
+    for the frequency response, 0 for the DC gain)."""
+    i = lin.outputs.index(tuple(output))
+    j = lin.inputs.index(tuple(input))
+    n = lin.A.shape[0]
+    x = np.linalg.solve(s * np.eye(n) - lin.A, lin.B[:, j])
+    return complex(lin.C[i] @ x + lin.D[i, j])
 
 
 def _scope(shape: dict, names, areas) -> str:
@@ -193,8 +242,25 @@ def _scope(shape: dict, names, areas) -> str:
     pos = [g for g, v in sig.items() if v.real >= 0]
     neg = [g for g, v in sig.items() if v.real < 0]
     if not pos or not neg:
-        return "local"
+        return "common" if len(sig) >= 2 else "local"
     a_pos, a_neg = {area_of[g] for g in pos}, {area_of[g] for g in neg}
     if len(set(areas)) > 1:
         return "inter-area" if not (a_pos & a_neg) else "local"
     return "inter-area" if min(len(pos), len(neg)) >= 2 else "local"
+
+
+def check_equilibrium(case: Case, op: Operating, tol: float = 1e-6) -> None:
+    """ValueError (one line, naming the state) when the largest |dy/dt| at the
+    operating point exceeds `tol` (state units per s): the linearization of a point
+    that is not an equilibrium describes no small-signal behaviour."""
+    mats = stage_matrices(op.grid, stage_configs(op.grid, ()))
+    dy = np.abs(
+        np.asarray(jax.jit(evaluate, static_argnums=(3,))(case, op, mats, 0, op.y0)[0])
+    )
+    if dy.size and dy.max() > tol:
+        k = int(np.argmax(dy))
+        model, dev, st = state_labels(case)[k]
+        raise ValueError(
+            f"the operating point is not an equilibrium: d{st}/dt = {dy[k]:.3g} at "
+            f"{model} {dev} (more than {tol:g})"
+        )
