@@ -141,7 +141,10 @@ def test_the_smib_case_reproduces_the_closed_form_model():
     ev = (BranchTrip(branch=k, t=0.7), BranchClose(branch=k, t=2.0))
     tr = simulate_jit(case, op, ev, t_end=4.0, rtol=1e-10, atol=1e-12)
     ref = sj.simulate(
-        NoControl(), fault=sj.Fault(Xf=1e9), t_end=4.0, rtol=1e-10, atol=1e-12
+        NoControl(),
+        fault=sj.Fault(Xf=1e9),
+        solver=sj.SolverOptions(rtol=1e-10, atol=1e-12),
+        save=sj.SaveOptions(t_end=4.0),
     )
     assert np.max(np.abs(np.asarray(tr.delta[:, 0]) - np.asarray(ref.delta))) < 1e-8
 
@@ -168,7 +171,7 @@ def test_a_batch_equals_its_single_runs(smib_classical):
     )
     batch = simulate_batch(case, op, ev, **OPTS)
     for i in range(3):
-        one = jax.tree_util.tree_map(lambda x, i=i: x[i], ev)
+        one = jax.tree_util.tree_map(lambda x, i=i: x[i] if jnp.ndim(x) else x, ev)
         tr = simulate_jit(case, op, one, **OPTS)
         np.testing.assert_allclose(
             np.asarray(batch.delta[i]), np.asarray(tr.delta), atol=1e-10
