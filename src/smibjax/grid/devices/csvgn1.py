@@ -46,6 +46,7 @@ import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 
+from ..psse import DYR_MODELS
 from ._blocks import (
     build_group,
     check,
@@ -76,7 +77,7 @@ class CSVGN1(AbstractShuntDevice):
     MBASE: np.ndarray = eqx.field(converter=f64)  # reactor rating (MVA)
 
     state_names = ("x_1", "x_2", "Y")
-    con_names = ("K", "T1", "T2", "T3", "T4", "T5", "RMIN", "VMAX", "VMIN", "CBASE")
+    con_names = DYR_MODELS["CSVGN1"]
 
     def __check_init__(self):
         check(

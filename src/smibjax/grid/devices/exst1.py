@@ -33,6 +33,7 @@ import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 
+from ..psse import DYR_MODELS
 from ._blocks import (
     build_group,
     check,
@@ -70,20 +71,7 @@ class EXST1(AbstractController):
     inputs = ("Vt", "Vs", "XadIfd")
     output = "Efd"
     state_names = ("Vm", "x_ll", "Efd", "x_f")
-    con_names = (
-        "TR",
-        "VIMAX",
-        "VIMIN",
-        "TC",
-        "TB",
-        "KA",
-        "TA",
-        "VRMAX",
-        "VRMIN",
-        "KC",
-        "KF",
-        "TF",
-    )
+    con_names = DYR_MODELS["EXST1"]
 
     def __check_init__(self):
         check(

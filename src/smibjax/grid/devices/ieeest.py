@@ -34,6 +34,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..._validate import ParameterError, is_concrete
+from ..psse import DYR_MODELS
 from ._blocks import (
     build_group,
     check,
@@ -52,25 +53,7 @@ from .base import AbstractController, f64, i64
 
 __all__ = ["IEEEST"]
 
-_CONS = (
-    "A1",
-    "A2",
-    "A3",
-    "A4",
-    "A5",
-    "A6",
-    "T1",
-    "T2",
-    "T3",
-    "T4",
-    "T5",
-    "T6",
-    "KS",
-    "LSMAX",
-    "LSMIN",
-    "VCU",
-    "VCL",
-)
+_CONS = DYR_MODELS["IEEEST"][2:]  # the CONs after the ICONs ICS, IB
 
 
 class IEEEST(AbstractController):

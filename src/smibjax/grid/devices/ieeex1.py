@@ -46,6 +46,7 @@ import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 
+from ..psse import DYR_MODELS
 from ._blocks import (
     build_group,
     check,
@@ -64,24 +65,7 @@ from .base import AbstractController, f64, i64
 
 __all__ = ["IEEEX1", "EXDC2", "saturation_coefficients"]
 
-CONS = (
-    "TR",
-    "KA",
-    "TA",
-    "TB",
-    "TC",
-    "VRMAX",
-    "VRMIN",
-    "KE",
-    "TE",
-    "KF",
-    "TF1",
-    "SWITCH",
-    "E1",
-    "SE1",
-    "E2",
-    "SE2",
-)
+CONS = DYR_MODELS["IEEEX1"]  # EXDC2 has the same CONs
 
 
 def saturation_coefficients(E1, SE1, E2, SE2, kind="quadratic"):

@@ -23,6 +23,7 @@ import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 
+from ..psse import DYR_MODELS
 from ._blocks import (
     build_group,
     check,
@@ -50,7 +51,7 @@ class SEXS(AbstractController):
     inputs = ("Vt", "Vs")
     output = "Efd"
     state_names = ("x_ll", "Efd")
-    con_names = ("TA_TB", "TB", "K", "TE", "EMIN", "EMAX")
+    con_names = DYR_MODELS["SEXS"]
 
     def __check_init__(self):
         check(

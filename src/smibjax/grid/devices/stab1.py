@@ -21,6 +21,7 @@ import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 
+from ..psse import DYR_MODELS
 from ._blocks import build_group, check, nonneg, positive, require_at_rest
 from .base import AbstractController, f64, i64
 
@@ -40,7 +41,7 @@ class STAB1(AbstractController):
     inputs = ("omega",)
     output = "Vs"
     state_names = ("x_w", "x_1", "x_2")
-    con_names = ("K_T", "T", "T1_T3", "T3", "T2_T4", "T4", "HLIM")
+    con_names = DYR_MODELS["STAB1"]
 
     def __check_init__(self):
         check(self, [*positive("T", "T3", "T4"), *nonneg("T1_T3", "T2_T4", "HLIM")])

@@ -21,6 +21,7 @@ import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 
+from ..psse import DYR_MODELS
 from ._blocks import (
     build_group,
     check,
@@ -50,7 +51,7 @@ class TGOV1(AbstractController):
     inputs = ("omega",)
     output = "Pm"
     state_names = ("x_v", "x_t")
-    con_names = ("R", "T1", "VMAX", "VMIN", "T2", "T3", "Dt")
+    con_names = DYR_MODELS["TGOV1"]
 
     def __check_init__(self):
         check(
