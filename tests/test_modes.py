@@ -439,3 +439,26 @@ def test_cli_modes_bad_input_one_line_exit_2_nothing_written(
     assert err.count("\n") == 1 and err.startswith("smibjax: error:")
     assert words in err
     assert not out.exists() and not (tmp_path / "p.png").exists()
+
+
+@pytest.mark.parametrize("beta", [(-1.0, -1.0), (-2.0, -1.0), (50.0, 50.0)])
+def test_the_paper_cases_linearization_has_the_manifold_roots(beta):
+    """Issue 29 item 5: the Jacobian of the SMIB's closed loop (ASC, oracle
+    adaptation, at the equilibrium with the true estimates) has the roots of the
+    manifold's error dynamics M s^2 + (D - kappa) s - kappa = 0, kappa = 1/beta1 +
+    1/beta2 (docs/model.md section 2): the saddle +0.24 1/s for beta = 50."""
+    import smibjax as sj
+    from smibjax._closed_loop import ClosedLoop, closed_loop_vector_field, initial_state
+    from smibjax._parameters import InitialEstimates
+
+    g = sj.Gains.paper("asc", beta1=beta[0], beta2=beta[1])
+    plant, op = sj.Plant(), sj.OperatingPoint()
+    loop = ClosedLoop(g, sj.Fault(), plant, op)
+    y = initial_state(op, plant, InitialEstimates(), loop.controller)
+    y = y.at[4].set(-plant.D).at[5].set(plant.Pm)  # the estimates at the truth
+    A = jax.jacfwd(lambda y: closed_loop_vector_field(0.0, y, loop))(y)[:6, :6]
+    lam = np.linalg.eigvals(np.asarray(A))
+    M = 2 * float(plant.H) / (2 * np.pi * float(plant.f))
+    kappa = 1 / beta[0] + 1 / beta[1]
+    for root in np.roots([M, float(plant.D) - kappa, -kappa]):
+        assert np.min(np.abs(lam - root)) < 1e-8 * max(1.0, abs(root)), (root, lam)
