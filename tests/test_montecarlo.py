@@ -244,7 +244,8 @@ def test_cct_solver_tolerances_reach_the_runs(monkeypatch):
         critical_clearing_times(
             {"a": sj.Gains()}, fault_locations=[0.5], rtol=2e-6, atol=3e-7
         )
-    assert seen["rtol"] == 2e-6 and seen["atol"] == 3e-7
+    solver = seen["solver"]  # a SolverOptions, passed whole
+    assert solver.rtol == 2e-6 and solver.atol == 3e-7 and solver.kind == "adaptive"
 
 
 @pytest.mark.parametrize(

@@ -4,7 +4,8 @@ checkpoints it writes and resumes from, and the optional gradient-free warm star
 A checkpoint is two files in the run folder: `checkpoint.eqx`, the state's arrays
 (raw parameters, the optimizer state, the best raw parameters) written by
 `equinox.tree_serialise_leaves`, and `checkpoint.json`, the rest as readable JSON
-(step, seed, history, validation summaries, search history, best step and summary).
+(step, seed, history, validation summaries, search history, best step and summary;
+NaN written as Python's json writes it).
 A run folder of the older tuner (a pickled `checkpoint.pkl`) cannot be resumed: one
 line says so.
 """
@@ -23,7 +24,7 @@ import numpy as np
 import optax
 
 from smibjax import TERM_NAMES
-from smibjax._files import atomic_write, write_json
+from smibjax._files import atomic_write, write_text
 
 from . import problem as problem_module
 from .outputs import write_history
@@ -99,7 +100,9 @@ def save_checkpoint(out: Path, state: TrainState) -> None:
         "validation": state.validation,
         "search": state.search,
     }
-    write_json(out / SIDECAR, json.loads(json.dumps(sidecar, default=_plain)))
+    # NaN stays NaN (a summary with nothing stable has NaN settling times): Python's
+    # json writes and reads it, where strict JSON would need null
+    write_text(out / SIDECAR, json.dumps(sidecar, default=_plain, indent=1) + "\n")
 
 
 def load_checkpoint(out: Path, opt, raw0) -> TrainState:
