@@ -15,9 +15,9 @@ import jax
 import numpy as np
 
 import smibjax as sj
-from smibjax.batch import Engine, Scenarios
-from smibjax.cli.process import enable_compilation_cache
-from smibjax.scenarios import FaultDistribution, sample_faults
+from smibjax._batch import Engine, Scenarios
+from smibjax._process import enable_compilation_cache
+from smibjax._scenarios import FaultDistribution, sample_faults
 
 ROOT = Path(__file__).resolve().parents[1]
 DEFAULT_OUT = Path(__file__).resolve().parent / "results"
@@ -69,7 +69,7 @@ def scenarios(seed: int, n: int) -> sj.Fault:
 def montecarlo_faults(seed: int, n: int) -> sj.Fault:
     """Scenarios 0..n-1 of `python -m smibjax montecarlo --seed SEED` (the default
     ScenarioDistribution: D and Pm are not drawn), as a batched `Fault`."""
-    from smibjax.scenarios import ScenarioDistribution, sample_scenarios
+    from smibjax._scenarios import ScenarioDistribution, sample_scenarios
 
     return sample_scenarios(seed, 0, n, ScenarioDistribution(), sj.Plant())[0]
 
@@ -96,7 +96,7 @@ def host_devices(k: int) -> list:
 
 
 def batched_metrics(t_end: float, rtol: float = RTOL, atol: float = ATOL):
-    """The batch engine (`smibjax.batch.Engine`, the one every batched caller uses)
+    """The batch engine (`smibjax._batch.Engine`, the one every batched caller uses)
     as (gains, faults, devices) -> (stable, settling time of delta (s), accepted
     steps), adaptive solver at (rtol, atol); alpha = 1 (ASC) is compiled in by the
     engine."""

@@ -11,7 +11,7 @@ from pathlib import Path
 import jax
 
 import smibjax as sj
-from smibjax.cli.files import write_text
+from smibjax._files import write_text
 
 
 def write_results(out: str | Path, name: str, config: dict, payload: dict) -> Path:

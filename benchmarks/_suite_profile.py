@@ -76,7 +76,7 @@ def pytest_unconfigure(config):
     folder = os.environ.get(ENV)
     if not folder or not getattr(config, "_suite_profile", False):
         return
-    from smibjax.cli.files import write_text
+    from smibjax._files import write_text
 
     name = os.environ.get("PYTEST_XDIST_WORKER", "controller")
     payload = {

@@ -83,7 +83,7 @@ def scipy_rate(controller: str, n: int) -> float:
     import vs_scipy  # configures the process (float64, devices) on import
 
     import smibjax as sj
-    from smibjax.scenarios import ScenarioDistribution, sample_scenarios
+    from smibjax._scenarios import ScenarioDistribution, sample_scenarios
 
     g = sj.Gains.paper(controller, beta1=-1.0, beta2=-1.0)
     gd = {k: float(getattr(g, k)) for k in sj.GAIN_NAMES}

@@ -24,11 +24,9 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from smibjax.cli.process import configure_process
+from smibjax import configure
 
-configure_process(
-    cache=False
-)  # one host device per core, before JAX starts its CPU backend
+configure(cache=False)  # one host device per core, before JAX starts its CPU backend
 
 import jax
 import matplotlib
@@ -39,8 +37,8 @@ import matplotlib.pyplot as plt
 from _results import write_results
 
 import smibjax as sj
+from smibjax._montecarlo import COLUMNS, MonteCarloSpec, compute_chunk
 from smibjax.cli.plotting import save_figure
-from smibjax.montecarlo import COLUMNS, MonteCarloSpec, compute_chunk
 
 
 def _noop(x):

@@ -6,7 +6,7 @@ one `sj.simulate` of a --t-end s scenario (AFTSC, beta1 = beta2 = -1, default so
 block on the result; `value_and_grad`: the tuner's first training step
 (`tuning.train.make_train_step` at the default tuning config, --grad-batch faults,
 value and gradient of the loss). The cache is enabled as the command-line tools
-enable it (`smibjax.cli.process.enable_compilation_cache`: `jax_compilation_cache_dir` =
+enable it (`smibjax._process.enable_compilation_cache`: `jax_compilation_cache_dir` =
 SMIBJAX_CACHE_DIR,
 `jax_persistent_cache_min_compile_time_secs` = 0.5), in a fresh temporary folder per
 cold run. Reported: the process wall time (start to exit, measured here) and the time
@@ -38,14 +38,14 @@ TARGETS = {("simulate", "cold"): 4.0, ("simulate", "warm"): 2.0}
 TARGETS[("value_and_grad", "cold")] = 12.0
 
 # Both child programs time from their first statement, enable the cache like
-# smibjax.cli.process.enable_compilation_cache (after the imports, as the CLI does)
+# smibjax._process.enable_compilation_cache (after the imports, as the CLI does)
 # and print one line.
 SIMULATE = """
 import time
 t0 = time.perf_counter()
 import json, os
-from smibjax.cli.process import configure_process
-configure_process(cache=False)  # as the CLI does before anything loads
+from smibjax import configure
+configure(cache=False)  # as the CLI does before anything loads
 import jax
 import smibjax as sj
 jax.config.update("jax_compilation_cache_dir", os.environ["SMIBJAX_CACHE_DIR"])
@@ -64,9 +64,9 @@ import time
 t0 = time.perf_counter()
 import json, os, sys
 sys.path.insert(0, {root!r})
-from smibjax.cli.process import configure_process
-configure_process(cache=False)  # one host device per core, as the tuner
-from tuning.driver import build
+from smibjax import configure
+configure(cache=False)  # one host device per core, as the tuner
+from tuning.problem import build
 import jax
 from tuning.config import load_config
 from tuning.train import make_train_step
@@ -243,8 +243,8 @@ def main(argv=None) -> None:
         f"{'from the config' if args.grad_t_end is None else args.grad_t_end}",
         "cache": "jax_compilation_cache_dir = fresh temporary folder per cold run, "
         f"min compile time {args.min_compile_time:g} s "
-        "(as smibjax.cli.process.enable_compilation_cache)",
-        "eqx_on_error": eqx_on_error or "unset (configure_process sets nan)",
+        "(as smibjax._process.enable_compilation_cache)",
+        "eqx_on_error": eqx_on_error or "unset (configure sets nan)",
         "repeat": args.repeat,
         "timing": "to result: from spawning the process to its blocked result (the "
         "targets; best of repeat); process: spawn to exit; in Python: first import to "

@@ -25,11 +25,11 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from smibjax.cli.process import configure_process
+from smibjax import configure
 
 # As an entry point: one host device per core (at least two), float64, equinox's
 # checks as NaNs, before JAX loads (the cache: _common.enable_cache).
-configure_process(min_devices=2, cache=False)
+configure(min_devices=2, cache=False)
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 sys.path.insert(0, str(HERE.parent))  # the tuning package
@@ -54,7 +54,7 @@ from _results import write_results
 
 from smibjax.cli.plotting import save_figure
 from tuning.config import load_config
-from tuning.driver import build
+from tuning.problem import build
 from tuning.train import draw_scenarios, make_loss, make_train_step
 
 TARGET_RATIO, TARGET_MEMORY_MB = 5.0, 1000.0

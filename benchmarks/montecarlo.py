@@ -11,11 +11,9 @@ Target (issue 5): 100,000 scenarios at >= 300 scenarios/s on a 2-core machine.
 
 from __future__ import annotations
 
-from smibjax.cli.process import configure_process
+from smibjax import configure
 
-configure_process(
-    cache=False
-)  # as `python -m smibjax` does, before JAX starts its CPU backend
+configure(cache=False)  # as `python -m smibjax` does, before JAX starts its CPU backend
 
 import argparse
 import shutil
@@ -28,8 +26,8 @@ from _common import add_tolerance_args, result_name
 from _results import write_results
 
 import smibjax as sj
+from smibjax._montecarlo import MonteCarloSpec, compute_chunk
 from smibjax.cli.runs import run_montecarlo
-from smibjax.montecarlo import MonteCarloSpec, compute_chunk
 
 TARGET = 300.0  # scenarios / s
 

@@ -7,10 +7,10 @@ fixed-step solver. Prints a table and writes benchmarks/results/single_scenario.
 
 from __future__ import annotations
 
-from smibjax.cli.process import configure_process
+from smibjax import configure
 
 # an entry point: float64, equinox's checks as NaNs, before JAX loads
-configure_process(cache=False)
+configure(cache=False)
 
 import argparse
 import time

@@ -3,12 +3,12 @@
 
 The headline rows ("montecarlo") run a Monte Carlo batch: scenarios 0..batch-1 of
 `python -m smibjax montecarlo --seed SEED` (the default ScenarioDistribution, drawn by
-`smibjax.scenarios.sample_scenarios`, exactly the rows the command computes). A second
+`smibjax._scenarios.sample_scenarios`, exactly the rows the command computes). A second
 kind of row ("identical", at batch >= 1024 only) runs the batch's first scenario in
 every lane: no lane waits for a slower one, an upper bound that a Monte Carlo does not
 reach. Gains beta1 = beta2 = -1, the default adaptive solver of `simulate` (Tsit5, rtol
 1e-6, atol 1e-8). The batch is one
-jit(vmap(simulate + metrics)) call per host device (`smibjax.parallel.device_map`),
+jit(vmap(simulate + metrics)) call per host device (`smibjax._parallel.device_map`),
 returning the stable flag, the settling time and the step count; the time is the best
 of --repeat calls after a warm-up (compiling) call. The accuracy of delta is checked
 on the first --n-check scenarios against a tight-tolerance run (rtol 1e-10, atol
@@ -25,11 +25,11 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from smibjax.cli.process import configure_process
+from smibjax import configure
 
 # As an entry point: one host device per core (at least two), float64, equinox's
 # checks as NaNs, before JAX loads (the cache: _common.enable_cache).
-configure_process(min_devices=2, cache=False)
+configure(min_devices=2, cache=False)
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import argparse

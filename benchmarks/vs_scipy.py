@@ -23,11 +23,11 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from smibjax.cli.process import configure_process
+from smibjax import configure
 
 # As an entry point: one host device per core (at least two), float64, equinox's
 # checks as NaNs, before JAX loads (the cache: _common.enable_cache).
-configure_process(min_devices=2, cache=False)
+configure(min_devices=2, cache=False)
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 sys.path.insert(0, str(HERE.parent / "tests"))  # reference.py, the SciPy model
@@ -67,8 +67,8 @@ from _common import (
 from _results import write_results
 
 import smibjax as sj
+from smibjax._closed_loop import DELTA_MARGIN
 from smibjax.cli.plotting import save_figure
-from smibjax.closed_loop import DELTA_MARGIN
 
 TARGET_RATIO = {"aftsc": 300.0, "asc": 150.0}
 

@@ -15,14 +15,14 @@ the gains beside what they were tuned for:
     }
 
 The old format, a flat table of gain name -> number, still loads
-(`smibjax.cli.files.read_gains_file`) as `legacy(gains)`, with the paper's context
+(`smibjax._files.read_gains_file`) as `legacy(gains)`, with the paper's context
 (controller by alpha: aftsc if alpha < 1, asc if alpha = 1; oracle adaptation; paper
 preset). `resolve` settles each context
 entry as: the command-line flag if given, else the file, else the paper's default,
 and returns the warnings and notes for the caller to print.
 
 This module holds the schema (validation, the context and its resolution); it never
-reads, writes or prints: `smibjax.cli.files` reads and writes gains files.
+reads, writes or prints: `smibjax._files` reads and writes gains files.
 """
 
 from __future__ import annotations

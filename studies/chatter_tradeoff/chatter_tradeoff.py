@@ -13,10 +13,10 @@ studies/chatter_tradeoff/chatter_tradeoff.json and docs/figures/chatter_tradeoff
 
 from __future__ import annotations
 
-from smibjax.cli.process import configure_process
+from smibjax import configure
 
 # an entry point: float64, equinox's checks as NaNs, before JAX loads
-configure_process(cache=False)
+configure(cache=False)
 
 import argparse
 import json
@@ -25,7 +25,7 @@ import sys
 import tempfile
 from pathlib import Path
 
-from smibjax.cli.files import write_text
+from smibjax._files import write_text
 
 HERE = Path(__file__).resolve().parent  # this study: its script and results
 ROOT = HERE.parents[1]
@@ -38,9 +38,9 @@ def _best(run: Path, n_val: int) -> dict:
     import jax
     import numpy as np
 
-    from smibjax.cli.files import read_gains_file
+    from smibjax._files import read_gains_file
     from tuning.config import load_config
-    from tuning.driver import build
+    from tuning.problem import build
     from tuning.train import draw_scenarios, make_validate, summarize
 
     cfg = load_config()

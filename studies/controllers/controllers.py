@@ -27,21 +27,21 @@ HERE = Path(__file__).resolve().parent  # this study: its script and results
 ROOT = HERE.parents[1]
 sys.path.insert(0, str(ROOT / "benchmarks"))  # _results
 
-from smibjax.cli.process import configure_process, enable_compilation_cache
+from smibjax._process import configure, enable_compilation_cache
 
-configure_process(cache=False)
+configure(cache=False)
 
 import numpy as np
 from _results import write_results
 
 import smibjax as sj
-from smibjax.cct import critical_clearing_times
-from smibjax.cli.files import read_gains_file, write_text
+from smibjax._cct import critical_clearing_times
+from smibjax._files import read_gains_file, write_text
+from smibjax._metrics import metrics
+from smibjax._montecarlo import MonteCarloSpec, compute_chunk, summarize
+from smibjax._scenarios import ScenarioDistribution
 from smibjax.cli.plotting import save_figure
 from smibjax.controllers import Synergetic, make_controller
-from smibjax.metrics import metrics
-from smibjax.montecarlo import MonteCarloSpec, compute_chunk, summarize
-from smibjax.scenarios import ScenarioDistribution
 
 LOCATIONS = (0.1, 0.3, 0.5, 0.7, 0.9)
 

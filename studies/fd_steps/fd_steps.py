@@ -23,9 +23,9 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from smibjax.cli.process import configure_process
+from smibjax import configure
 
-configure_process(host_devices=False)  # one device: the tests' training step
+configure(host_devices=False)  # one device: the tests' training step
 HERE = Path(__file__).resolve().parent  # this study: its script and results
 ROOT = HERE.parents[1]
 sys.path.insert(0, str(ROOT / "benchmarks"))  # _common, _results
@@ -41,8 +41,8 @@ from _results import write_results
 
 import smibjax as sj
 from tuning.config import load_config
-from tuning.driver import build
 from tuning.params import GainSpace, gains_to_dict
+from tuning.problem import build
 from tuning.train import draw_scenarios, make_train_step
 
 STEPS = (1e-2, 3e-3, 1e-3, 3e-4, 1e-4, 3e-5, 1e-5, 1e-6)

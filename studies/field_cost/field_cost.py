@@ -1,9 +1,9 @@
 """What a closed-loop field evaluation costs, and where a Monte Carlo step goes.
 
-1. The field (`smibjax.closed_loop.closed_loop_vector_field`) vmapped over --lanes
+1. The field (`smibjax._closed_loop.closed_loop_vector_field`) vmapped over --lanes
    lanes and evaluated --evals times in a `lax.fori_loop`, one core: nanoseconds per
    lane and evaluation, and the sines and cosines in the compiled program; once as
-   the closed loop runs it (sin and cos of delta computed once, `smibjax.plant.sincos`)
+   the closed loop runs it (sin and cos of delta computed once, `smibjax._plant.sincos`)
    and once with each consumer computing its own (the controller's coordinate map and
    drift, the plant), as they did before 2026-12-01.
 2. The batch engine on Monte Carlo scenarios 0..--n-1 (seed 0, default distribution,
@@ -30,9 +30,9 @@ sys.path.insert(0, str(ROOT / "benchmarks"))  # _common, _results
 # one core: the per-lane figures do not depend on how a batch is split
 os.environ["XLA_FLAGS"] = "--xla_force_host_platform_device_count=1"
 
-from smibjax.cli.process import configure_process
+from smibjax import configure
 
-configure_process(cache=False)
+configure(cache=False)
 
 import argparse
 import re
@@ -44,10 +44,10 @@ import numpy as np
 from _results import write_results
 
 import smibjax as sj
-from smibjax.batch import Engine, Scenarios
-from smibjax.closed_loop import ClosedLoop, closed_loop_vector_field, healthy
-from smibjax.plant import apply_limits, plant_vector_field
-from smibjax.scenarios import ScenarioDistribution, sample_scenarios
+from smibjax._batch import Engine, Scenarios
+from smibjax._closed_loop import ClosedLoop, closed_loop_vector_field, healthy
+from smibjax._plant import apply_limits, plant_vector_field
+from smibjax._scenarios import ScenarioDistribution, sample_scenarios
 
 
 def field_per_consumer(t, y, loop):

@@ -23,9 +23,9 @@ HERE = Path(__file__).resolve().parent  # this study: its script and results
 ROOT = HERE.parents[1]
 sys.path.insert(0, str(ROOT / "benchmarks"))  # _common, _results
 
-from smibjax.cli.process import configure_process
+from smibjax import configure
 
-configure_process(cache=False)
+configure(cache=False)
 
 import argparse
 import time
@@ -36,9 +36,9 @@ from _common import result_name
 from _results import write_results
 
 import smibjax as sj
-from smibjax.batch import Engine, Scenarios
+from smibjax._batch import Engine, Scenarios
+from smibjax._scenarios import ScenarioDistribution, sample_scenarios
 from smibjax.controllers import Synergetic
-from smibjax.scenarios import ScenarioDistribution, sample_scenarios
 
 
 def main() -> None:

@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 from scipy.stats import spearmanr
 
-from smibjax.cli.files import write_text
+from smibjax._files import write_text
 from smibjax.cli.runs import read_rows
 
 INPUTS = ("t_fault", "t_reclose", "clear_duration", "fault_location", "fault_reactance")

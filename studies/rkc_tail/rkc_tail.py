@@ -33,9 +33,9 @@ sys.path.insert(0, str(ROOT / "benchmarks"))  # _common, _results
 
 os.environ["XLA_FLAGS"] = "--xla_force_host_platform_device_count=1"
 
-from smibjax.cli.process import configure_process
+from smibjax import configure
 
-configure_process(cache=False)
+configure(cache=False)
 
 import argparse
 from typing import ClassVar
@@ -47,15 +47,15 @@ import numpy as np
 from _results import write_results
 
 import smibjax as sj
-from smibjax.closed_loop import (
+from smibjax._closed_loop import (
     ClosedLoop,
     closed_loop_vector_field,
     healthy,
     initial_state,
 )
-from smibjax.metrics import settling_time
-from smibjax.scenarios import ScenarioDistribution, sample_scenarios
-from smibjax.simulate import _RmsDynamic
+from smibjax._metrics import settling_time
+from smibjax._scenarios import ScenarioDistribution, sample_scenarios
+from smibjax._simulate import _RmsDynamic
 
 T_END = 10.0
 

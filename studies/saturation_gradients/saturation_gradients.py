@@ -21,10 +21,10 @@ Writes `saturation_gradients.json` and `.png` beside this script (studies/satura
 
 from __future__ import annotations
 
-from smibjax.cli.process import configure_process
+from smibjax import configure
 
 # an entry point: float64, equinox's checks as NaNs, before JAX loads
-configure_process(cache=False)
+configure(cache=False)
 
 import argparse
 import sys
@@ -42,10 +42,10 @@ import numpy as np
 from _results import write_results
 
 import smibjax as sj
+from smibjax._losses import LossWeights, scenario_loss
+from smibjax._process import enable_compilation_cache
 from smibjax.cli.plotting import save_figure
-from smibjax.cli.process import enable_compilation_cache
 from smibjax.controllers import EstimateBox, Synergetic
-from smibjax.losses import LossWeights, scenario_loss
 from tuning.params import GainSpace
 
 PLANT = sj.Plant.preset("realistic")

@@ -24,9 +24,9 @@ HERE = Path(__file__).resolve().parent  # this study: its script and results
 ROOT = HERE.parents[1]
 sys.path.insert(0, str(ROOT / "benchmarks"))  # _common, _results
 
-from smibjax.cli.process import configure_process
+from smibjax import configure
 
-configure_process(cache=False)
+configure(cache=False)
 
 import argparse
 import time
@@ -37,9 +37,9 @@ from _common import result_name
 from _results import write_results
 
 import smibjax as sj
-from smibjax.cli.files import write_text
-from smibjax.montecarlo import COLUMNS, MonteCarloSpec, compute_chunk
-from smibjax.parameters import PLANT_NAMES
+from smibjax._files import write_text
+from smibjax._montecarlo import COLUMNS, MonteCarloSpec, compute_chunk
+from smibjax._parameters import PLANT_NAMES
 
 SETTLING_TARGET = 0.005  # s: settling times within 5 ms of the exact law's
 INPUTS = COLUMNS[: COLUMNS.index("stable")]  # the scenario's own columns
@@ -48,8 +48,8 @@ VERDICTS = ("stable", "lost_sync", "budget_exhausted")
 
 def spec_of(args, layer: float) -> MonteCarloSpec:
     if args.gains:
-        from smibjax.cli.files import read_gains_file
-        from smibjax.gainsfile import resolve
+        from smibjax._files import read_gains_file
+        from smibjax._gainsfile import resolve
 
         ctx, values, _ = resolve(read_gains_file(args.gains, complete=True))
         plant = sj.Plant.preset(ctx.preset, **ctx.plant)

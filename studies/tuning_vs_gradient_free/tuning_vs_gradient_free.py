@@ -30,11 +30,9 @@ ROOT = HERE.parents[1]
 sys.path.insert(0, str(ROOT))  # the tuning package
 sys.path.insert(0, str(ROOT / "benchmarks"))  # _results
 
-from smibjax.cli.process import configure_process, enable_compilation_cache
+from smibjax._process import configure, enable_compilation_cache
 
-configure_process(
-    cache=False
-)  # one host device per core, before JAX starts its CPU backend
+configure(cache=False)  # one host device per core, before JAX starts its CPU backend
 
 import jax
 import matplotlib
@@ -47,7 +45,8 @@ from _results import write_results
 
 from smibjax.cli.plotting import save_figure
 from tuning.config import load_config
-from tuning.driver import build, run
+from tuning.loop import run
+from tuning.problem import build
 from tuning.search import cross_entropy_search, make_population_score
 from tuning.train import draw_scenarios, make_validate, summarize
 

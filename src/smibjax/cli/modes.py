@@ -11,7 +11,7 @@ import sys
 
 import numpy as np
 
-from .files import check_new_file, write_json, write_text
+from .._files import check_new_file, write_json, write_text
 from .options import CLIError, parse_sets
 
 __all__ = ["add_parser", "run", "parse_sweep"]
@@ -85,7 +85,7 @@ def parse_sweep(text: str) -> tuple[str, np.ndarray]:
 
 def _outputs(args):
     """The output paths, checked before any work."""
-    from .plotting import check_plot_path
+    from .._figures import check_plot_path
 
     out = {}
     for opt, key in (("--out", "out"), ("--csv", "csv"), ("--plot", "plot")):
