@@ -67,6 +67,7 @@ if TYPE_CHECKING:  # the public names; loaded on first use (`__getattr__`)
     from ._plant import plant_vector_field as plant_vector_field
     from ._plant import terminal_voltage as terminal_voltage
     from ._process import configure as configure
+    from ._scenarios import FaultDistribution as FaultDistribution
     from ._scenarios import ScenarioDistribution as ScenarioDistribution
     from ._scenarios import sample_faults as sample_faults
     from ._scenarios import sample_scenarios as sample_scenarios

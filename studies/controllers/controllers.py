@@ -200,8 +200,8 @@ def main(argv=None) -> int:
                 adaptation=adaptation,
             )
             cct[criterion] = {
-                "cct": r["sets"][label]["cct"],
-                "status": r["sets"][label]["status"],
+                "cct": r.sets[label].cct,
+                "status": r.sets[label].status,
             }
         cct["seconds"] = time.perf_counter() - t0
         tr = sj.simulate(ctrl, sj.Fault(), plant)

@@ -90,10 +90,10 @@ def main(argv=None) -> int:
     results["adam (default run)"] = {
         "simulations": cfg["steps"] * args.batch,
         "wall_s": time.perf_counter() - t0,
-        **score_final(state["best"]["raw"]),
+        **score_final(state.best.raw),
     }
     curves["adam (default run)"] = [
-        (r["step"] * args.batch, r["loss"]) for r in state["history"]
+        (r["step"] * args.batch, r["loss"]) for r in state.history
     ]
 
     # --- gradient-free on the exact score of a fixed batch

@@ -24,3 +24,22 @@ from .options import EstimateBox as EstimateBox
 from .options import project as project
 from .options import synergetic_options as synergetic_options
 from .transforms import GAIN_KINDS as GAIN_KINDS
+
+__all__ = [
+    "Synergetic",
+    "GAIN_NAMES",
+    "Gains",
+    "ControlOutput",
+    "adaptation_rate",
+    "control_law",
+    "drift_and_gain",
+    "drift_and_gain_closed_form",
+    "evolution",
+    "paper_coordinates",
+    "spow",
+    "static_alpha",
+    "EstimateBox",
+    "project",
+    "synergetic_options",
+    "GAIN_KINDS",
+]
