@@ -513,26 +513,31 @@ def main(argv=None) -> None:
 
     load = os.getloadavg()
     t_all = time.perf_counter()
-    res = {}
-    if "a" not in args.skip:
-        print("a. accuracy", flush=True)
-        res["accuracy"] = accuracy(args)
-    if "b" not in args.skip:
-        print("b. throughput", flush=True)
-        res["throughput"] = throughput(args)
-    if "c" not in args.skip:
-        print("c. IEEE 39", flush=True)
-        res["ieee39"] = ieee39_batch(args)
-    if "compile" not in args.skip:
-        res["ieee39_compile"] = compile_times()
-    res["load_average_start"] = list(load)
-    res["load_average_end"] = list(os.getloadavg())
-    res["total_s"] = time.perf_counter() - t_all
-    res["andes"] = andes.__version__
-    res["fault"] = f"bus fault r = 0, x = {XF} pu (system base)"
     name = f"vs_andes_{args.tag}" if args.tag else "vs_andes"
     cfg = {k: v for k, v in vars(args).items()}
-    write_results(args.out, name, cfg, res)
+    res = {"load_average_start": list(load), "andes": andes.__version__}
+    res["fault"] = f"bus fault r = 0, x = {XF} pu (system base)"
+
+    def save(done: str) -> None:
+        # after each part, so that a long run interrupted keeps what it measured
+        res["parts_done"] = res.get("parts_done", []) + [done]
+        res["load_average_end"] = list(os.getloadavg())
+        res["total_s"] = time.perf_counter() - t_all
+        write_results(args.out, name, cfg, res)
+
+    parts = (
+        ("a", "accuracy", accuracy),
+        ("b", "throughput", throughput),
+        ("c", "ieee39", ieee39_batch),
+    )
+    for key, label, fn in parts:
+        if key not in args.skip:
+            print(f"{key}. {label}", flush=True)
+            res[label] = fn(args)
+            save(key)
+    if "compile" not in args.skip:
+        res["ieee39_compile"] = compile_times()
+        save("compile")
     figure(res, Path(args.out) / f"{name}.png")
     print(f"wrote {Path(args.out) / name}.json/.png in {res['total_s']:.0f} s")
 
