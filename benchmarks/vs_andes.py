@@ -486,7 +486,9 @@ def parse_args(argv=None):
     )
     ap.add_argument("--cases", nargs="+", default=None, help="accuracy cases")
     ap.add_argument("--skip", nargs="*", default=[], choices=["a", "b", "c", "compile"])
-    ap.add_argument("--devices", type=int, default=2)
+    ap.add_argument(
+        "--devices", type=int, default=1, help="host devices to shard over (2 stalls)"
+    )
     ap.add_argument("--repeat", type=int, default=2)
     ap.add_argument("--rtol", type=float, default=1e-6)
     ap.add_argument("--atol", type=float, default=1e-8)
