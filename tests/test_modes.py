@@ -379,6 +379,25 @@ def test_cli_modes_writes_table_json_csv_plot(tmp_path, capsys):
     assert "inter-area" in text and text.count("local") == 2
     data = json.loads(out.read_text())
     assert data["set"] == {"GENCLS.D": 2.0}
+    # the same parameter from a --gains file gives the same modes
+    gains = tmp_path / "gains.toml"
+    gains.write_text('"GENCLS.D" = 2.0\n')
+    out2 = tmp_path / "m2.json"
+    assert (
+        main(
+            [
+                "modes",
+                "--case",
+                "kundur-gencls",
+                "--gains",
+                str(gains),
+                "--out",
+                str(out2),
+            ]
+        )
+        == 0
+    )
+    assert json.loads(out2.read_text())["modes"] == data["modes"]
     kinds = [m["kind"] for m in data["modes"]]
     assert kinds.count("electromechanical") == 3
     em = [m for m in data["modes"] if m["kind"] == "electromechanical"]
@@ -425,6 +444,9 @@ def test_cli_modes_sweep(tmp_path, capsys):
         (["--case", "kundur-gencls", "--sweep", "GENCLS.D=0:1"], "PARAM=lo:hi:n"),
         (["--case", "kundur-gencls", "--sweep", "GENCLS.D=0:1:x"], "an integer"),
         (["--case", "kundur-gencls", "--sweep", "FOO.K=0:1:3"], "FOO"),
+        (["--case", "kundur-gencls", "--gains", "GAINS_NAN"], "is not a finite number"),
+        (["--case", "kundur-gencls", "--gains", "GAINS_LIST"], "must be a table"),
+        (["--case", "kundur-gencls", "--gains", "GAINS_BAD"], "GENCLS.XX"),
     ],
 )
 def test_cli_modes_bad_input_one_line_exit_2_nothing_written(
@@ -433,6 +455,14 @@ def test_cli_modes_bad_input_one_line_exit_2_nothing_written(
     from smibjax.cli import main
 
     out = tmp_path / "m.json"
+    files = {
+        "GAINS_NAN": '{"GENCLS.D": NaN}',
+        "GAINS_LIST": "[1, 2]",
+        "GAINS_BAD": '{"GENCLS.XX": 1.0}',
+    }
+    for key, text in files.items():
+        (tmp_path / f"{key}.json").write_text(text)
+    argv = [str(tmp_path / f"{a}.json") if a in files else a for a in argv]
     rc = main(["modes", *argv, "--out", str(out), "--plot", str(tmp_path / "p.png")])
     err = capsys.readouterr().err
     assert rc == 2

@@ -37,6 +37,12 @@ def add_parser(sub) -> None:
         help="set a device parameter (IEEEST.KS=10, SEXS[1:1].K=100); repeatable",
     )
     s.add_argument(
+        "--gains",
+        metavar="FILE",
+        help='device parameters from a JSON or TOML table {"MODEL.PARAM": value} '
+        "(e.g. tuned PSS settings); --set entries override it",
+    )
+    s.add_argument(
         "--load-factor",
         type=float,
         default=1.0,
@@ -97,6 +103,33 @@ def _outputs(args):
     return out
 
 
+def _gains_file(path) -> dict:
+    """{name: value} from a --gains file: a JSON or TOML table of device parameters
+    by name (`smibjax.grid.params`), numbers only."""
+    if not path:
+        return {}
+    from .._files import read_data
+
+    try:
+        table = read_data(path)
+    except OSError as e:
+        raise CLIError(f"--gains {path}: {e.strerror or e}") from None
+    except ValueError as e:
+        raise CLIError(f"--gains {path}: {str(e).splitlines()[0]}") from None
+    if not isinstance(table, dict):
+        raise CLIError(f"--gains {path}: must be a table of MODEL.PARAM = value")
+    out = {}
+    for k, v in table.items():
+        if (
+            isinstance(v, bool)
+            or not isinstance(v, int | float)
+            or not math.isfinite(v)
+        ):
+            raise CLIError(f"--gains {path}: {k} = {v!r} is not a finite number")
+        out[str(k)] = float(v)
+    return out
+
+
 def _load(args):
     from ..grid.case import CaseError, load_case
     from ..grid.params import ParamError, get_param, set_params
@@ -105,7 +138,7 @@ def _load(args):
         case = load_case(args.case, args.dyr)
     except (CaseError, FileNotFoundError) as e:
         raise CLIError(f"--case {args.case!r} is not allowed: {e}") from None
-    sets = parse_sets(args.set)
+    sets = {**_gains_file(args.gains), **parse_sets(args.set)}
     try:
         for name in sets:
             get_param(case, name)
