@@ -20,8 +20,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from smibjax import Plant
 from smibjax.grid.cases import CASES_DIR, case_file, case_files
-from smibjax.parameters import Plant
 
 DATA = Path(__file__).resolve().parent / "data" / "andes_pflow.json"
 

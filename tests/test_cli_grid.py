@@ -8,8 +8,6 @@ import pytest
 
 from smibjax.cli import main
 
-pytestmark = pytest.mark.xdist_group("grid")
-
 
 def test_simulate_a_case_writes_named_arrays_and_a_plot(tmp_path, capsys):
     out, plot = tmp_path / "run.npz", tmp_path / "run.png"

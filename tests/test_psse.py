@@ -721,6 +721,7 @@ def test_against_andes_on_the_fixture(raw, system):
 def test_against_andes_on_kundur():
     """ANDES's kundur.raw (PSS/E 32) and kundur_full.dyr: every bus, branch, load and
     generator, and the dyr parameters as ANDES reads them (its own column names)."""
+    pytest.importorskip("andes")
     raw = psse.read_raw(ANDES_CASES / "kundur" / "kundur.raw")
     system = psse.to_system(raw)
     ss = _andes(raw.path, ANDES_CASES / "kundur" / "kundur_full.dyr")
@@ -742,6 +743,7 @@ def test_against_andes_on_kundur():
 
 
 def test_against_andes_on_ieee39():
+    pytest.importorskip("andes")
     raw = psse.read_raw(ANDES_CASES / "ieee39" / "ieee39.raw")
     system = psse.to_system(raw)
     ss = _andes(raw.path)
