@@ -205,18 +205,18 @@ def _gen_position(case, spec: str) -> int:
     return names.index(name)
 
 
-def _describe(case, pf) -> str:
-    from collections import Counter
+def _solver_kw(args) -> dict:
+    """The horizon, sampling and tolerances of a run, from the command line."""
+    return dict(t_end=args.t_end, dt_save=args.dt_save, rtol=args.rtol, atol=args.atol)
 
-    kinds = Counter(
-        type(g).__name__ for g in (*case.machines, *case.controllers, *case.svcs)
-    )
+
+def _describe(case, pf) -> str:
     counts = {}
     for g in (*case.machines, *case.controllers, *case.svcs):
         counts[type(g).__name__] = counts.get(type(g).__name__, 0) + len(
             np.atleast_1d(getattr(g, "gen", getattr(g, "bus", [])))
         )
-    devices = ", ".join(f"{counts[k]} {k}" for k in kinds)
+    devices = ", ".join(f"{n} {k}" for k, n in counts.items())
     return (
         f"case {case.name}: {case.system.n_bus} buses, {len(case.system.branches.fr)} "
         f"branches, {devices}; power flow in {int(pf.iterations)} iterations"
@@ -277,15 +277,7 @@ def run_simulate(args) -> int:
     print(f"events: {_event_text(case, ev)}", file=sys.stderr)
     print("compiling and running ...", file=sys.stderr)
     t0 = time.perf_counter()
-    tr = simulate_jit(
-        case,
-        op,
-        ev,
-        t_end=args.t_end,
-        dt_save=args.dt_save,
-        rtol=args.rtol,
-        atol=args.atol,
-    )
+    tr = simulate_jit(case, op, ev, **_solver_kw(args))
     t_first = min(float(e.switches()[0]) for e in ev)
     m = grid_metrics(case, tr, jnp.asarray(t_first))
     wall = time.perf_counter() - t0
@@ -394,7 +386,6 @@ def run_montecarlo(args) -> int:
     """`montecarlo --case`: fault scenarios drawn over buses or lines; rows.csv,
     summary.json in --out."""
     import jax
-    import jax.numpy as jnp
 
     from .._files import write_json, write_text
     from ..grid.metrics import GridMetrics, grid_metrics
@@ -443,15 +434,7 @@ def run_montecarlo(args) -> int:
     for start in range(0, n, chunk):
         k = min(chunk, n - start)
         ev = sample_events(case.system, dist, chunk, args.seed + start)
-        tr = simulate_batch(
-            case,
-            op,
-            ev,
-            t_end=args.t_end,
-            dt_save=args.dt_save,
-            rtol=args.rtol,
-            atol=args.atol,
-        )
+        tr = simulate_batch(case, op, ev, **_solver_kw(args))
         m = jax.vmap(
             lambda t, e: grid_metrics(case, t, e.switches()[0]), in_axes=(0, 0)
         )(tr, ev[0])
@@ -494,7 +477,6 @@ def run_montecarlo(args) -> int:
         write_text(out / "rows.csv", "\n".join(lines) + "\n")
         write_json(out / "summary.json", summary)
         print(f"wrote {out}/rows.csv, {out}/summary.json")
-    _ = jnp
     return 0
 
 
