@@ -38,10 +38,10 @@ import os
 import sys
 from pathlib import Path
 
-from smibjax.cli.process import configure_process
+from smibjax import configure
 
 if __name__ == "__main__" and "--child-compile" not in sys.argv:
-    configure_process(min_devices=2, cache=False)
+    configure(min_devices=2, cache=False)
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 
@@ -401,7 +401,7 @@ def ieee39_batch(args) -> dict:
 def child_compile(cache_dir: str) -> None:
     """In a fresh process: the first and second call of a 2-scenario IEEE 39 batch;
     prints JSON {first, second} (s)."""
-    configure_process(min_devices=1, cache_dir=cache_dir)
+    configure(min_devices=1, cache_dir=cache_dir)
     import jax
 
     jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.0)

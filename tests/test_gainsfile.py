@@ -212,3 +212,59 @@ def test_bad_context_is_one_line_exit_2(
     assert len(err.splitlines()) == 1 and err.startswith("smibjax: error:")
     assert re.search(match, err), err
     assert not out.exists()
+
+
+@pytest.mark.parametrize("command", ["simulate", "montecarlo", "cct"])
+def test_another_controllers_gains_under_a_controller_flag_is_one_line(
+    tmp_path, capsys, command
+):
+    """Issue 32: an avr-pss gains file under `--controller aftsc` was a warning, then
+    a TypeError (Gains got K_A), exit 1; now one line naming both, exit 2, nothing
+    written."""
+    avr = tmp_path / "avr.json"
+    gf = gainsfile.GainsFile(
+        "avr-pss", "oracle", {"preset": "realistic", **REALISTIC}, {}, {"K_A": 100.0}
+    )
+    write_gains_file(avr, gf)
+    out = tmp_path / "out"
+    argv = [command, "--gains", str(avr), "--controller", "aftsc", "--out", str(out)]
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1, err
+    assert "--controller aftsc cannot run" in err and "avr-pss: K_A" in err
+    assert not out.exists()
+
+
+def test_a_gains_file_records_only_the_context_that_applies(tmp_path):
+    """Issue 32: an avr-pss (or none) gains file has no adaptation entry (the paper's
+    law's), the tuner's writer included; one written by an older version (with the
+    entry) still loads; the paper's law's file keeps its adaptation."""
+    from tuning.config import load_config
+    from tuning.outputs import gains_file as _gains_file
+
+    cfg = load_config(controller="avr-pss")
+    gf = _gains_file(cfg, sj.AvrPss())
+    path = write_gains_file(tmp_path / "g.json", gf)
+    data = json.loads(path.read_text())
+    assert "adaptation" not in data and data["controller"] == "avr-pss"
+    assert "adaptation" not in gainsfile.resolve(gf)[0].describe()
+    old = tmp_path / "old.json"
+    old.write_text(json.dumps({**data, "adaptation": "realizable"}))
+    assert read_gains_file(old).gains == data["gains"]
+    aftsc = _gains_file(
+        {"controller": "aftsc", "adaptation": "realizable", "preset": "paper"},
+        sj.Gains(**STABLE),
+    )
+    assert aftsc.to_dict()["adaptation"] == "realizable"
+    no_entry = {k: v for k, v in aftsc.to_dict().items() if k != "adaptation"}
+    with pytest.raises(sj.ParameterError, match="'adaptation' is missing"):
+        gainsfile.validate(no_entry)
+
+
+def test_adaptation_flag_for_a_controller_without_one_is_one_line(tmp_path, capsys):
+    out = tmp_path / "o.npz"
+    argv = ["simulate", "--controller", "avr-pss", "--adaptation", "realizable"]
+    assert main([*argv, "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "does not apply to controller" in err
+    assert not out.exists()

@@ -504,3 +504,57 @@ def test_model_selection_is_most_stable_then_fastest():
     assert not _better(v(1.0, 2.0), v(1.0, 2.0))  # a tie keeps the earlier
     assert _better(v(0.0, 5.0), v(0.0, float("nan")))
     assert not _better(v(0.0, float("nan")), v(0.0, 5.0))
+
+
+def test_the_default_config_is_default_toml_unchanged():
+    """The aftsc defaults are configs/default.toml as it stands (the default tuning
+    run must not move: tests/identity.py)."""
+    from tuning.config import DEFAULT, load_toml
+
+    assert load_config() == load_toml(DEFAULT)
+    assert load_config(controller="asc")["continuation"]["steps"] == 40
+
+
+def test_avr_pss_gets_its_own_defaults():
+    """Issue 32: `--controller avr-pss` ran the paper's law's continuation, froze k1,
+    k2, c1, c2 (not its parameters) and put the synergetic T1 bound on the PSS's T1,
+    with no bound on K_A. Its defaults are now its family's."""
+    from tuning.optimize import parse_args, resolve_config
+
+    cfg = resolve_config(parse_args(["--controller", "avr-pss"]))
+    assert cfg["continuation"]["steps"] == 0
+    assert cfg["gains"]["freeze"] == []
+    assert "T1" not in cfg["gains"]["bounds"]
+    assert cfg["gains"]["bounds"]["K_A"] == [10.0, 400.0]
+    assert "adaptation" not in cfg and "options" not in cfg
+    space = build(cfg).space
+    assert space.frozen == {} and "T1" not in space.bounds
+    assert space.bounds["K_A"] == (10.0, 400.0)
+    # the shipped config is the same run
+    from helpers import ROOT
+
+    path = ROOT / "tuning" / "configs" / "avr_pss.toml"
+    assert resolve_config(parse_args(["--config", str(path)])) == cfg
+
+
+@pytest.mark.parametrize(
+    ("toml", "argv", "match"),
+    [
+        ("[options]\nphi_layer = 0.02\n", [], "'options' .* does not apply"),
+        ('adaptation = "oracle"\n', [], "'adaptation' .* does not apply"),
+        ("", ["--adaptation", "oracle"], "'adaptation' .* does not apply"),
+        ("[gains]\nbeta_abs_min = 0.2\n", [], "'gains.beta_abs_min' .* not apply"),
+        ('[gains]\nfreeze = ["k1"]\n', [], "unknown gain 'k1' in gains.freeze"),
+        ("[gains.bounds]\nbeta1 = [-2, -0.1]\n", [], "unknown gain 'beta1' in gains.bounds"),
+    ],
+)
+def test_a_key_that_does_not_apply_is_one_line(tmp_path, capsys, toml, argv, match):
+    import re
+
+    cfgfile = tmp_path / "c.toml"
+    cfgfile.write_text('controller = "avr-pss"\n' + toml)
+    out = tmp_path / "run"
+    assert main(["--config", str(cfgfile), "--out", str(out), *argv]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and re.search(match, err), err
+    assert not out.exists()

@@ -48,11 +48,91 @@ def _merge(base: dict, over: dict, path=()) -> dict:
     return out
 
 
-def load_config(path: str | Path | None = None) -> dict:
-    """The default configuration, overridden by the file at `path` (if any)."""
+# Keys of configs/default.toml that belong to the paper's law (aftsc, asc) alone: a
+# controller without an adaptation mode (avr-pss) has none of them, and a config that
+# sets one for it is refused.
+SYNERGETIC_ONLY = (("adaptation",), ("options",), ("gains", "beta_abs_min"))
+
+# Defaults of default.toml that belong to one controller family, replaced for the other
+# controllers (before the user's config applies): the paper's law starts from gains that
+# lose synchronism under the real limits (continuation), freezes its k and c gains and
+# bounds its T1 for the fixed training step; the conventional AVR + PSS + SVC regulator
+# keeps synchronism (no continuation), has no k or c, and its own bounds.
+FAMILY_DEFAULTS = {
+    "avr-pss": {
+        "continuation": {"steps": 0},
+        "gains": {
+            "freeze": [],
+            "bounds": {
+                "T_A": [0.005, 0.5],  # exciter lag: T_A >> the 2 ms fixed step
+                "T2": [0.005, 1.0],  # the lead-lag denominators
+                "T4": [0.005, 1.0],
+                "K_A": [10.0, 400.0],  # typical static-exciter range
+                "vs_max": [0.02, 0.5],  # PSS output limit (pu)
+            },
+        },
+    },
+}
+
+
+def controller_defaults(controller: str) -> dict:
+    """configs/default.toml as it applies to `controller`: the paper's law's keys
+    (`SYNERGETIC_ONLY`) removed for a controller without adaptation, and the
+    family's defaults (`FAMILY_DEFAULTS`) in place of the paper's law's."""
     cfg = load_toml(DEFAULT)
-    if path is not None:
-        cfg = _merge(cfg, load_toml(path))
+    cfg["controller"] = controller
+    if controller in FAMILY_DEFAULTS:
+        for path in SYNERGETIC_ONLY:
+            table = cfg
+            for k in path[:-1]:
+                table = table[k]
+            table.pop(path[-1], None)
+        for table, values in FAMILY_DEFAULTS[controller].items():
+            cfg[table].update(copy.deepcopy(values))
+    return cfg
+
+
+def _refuse_foreign(over: dict, controller: str, where: str) -> None:
+    """One line for a key of `over` (a config file's or the flags' table) that does
+    not apply to `controller`."""
+    if controller not in FAMILY_DEFAULTS:
+        return
+    for path in SYNERGETIC_ONLY:
+        table = over
+        for k in path[:-1]:
+            table = table.get(k, {}) if isinstance(table, dict) else {}
+        if isinstance(table, dict) and path[-1] in table:
+            raise ParameterError(
+                f"config key {'.'.join(path)!r}{where} does not apply to controller "
+                f"{controller!r}: it belongs to the paper's law (aftsc, asc)"
+            )
+
+
+def load_config(
+    path: str | Path | None = None,
+    controller: str | None = None,
+    flags: dict | None = None,
+) -> dict:
+    """The default configuration for the chosen controller (`controller_defaults`),
+    overridden by the file at `path` (if any), then by `flags` (top-level keys set on
+    the command line). The controller is `controller`, else `flags`', else the
+    file's, else the default's (aftsc). A key that does not apply to that controller
+    is refused in one line."""
+    user = load_toml(path) if path is not None else {}
+    flags = {k: v for k, v in (flags or {}).items() if v is not None}
+    chosen = (
+        controller
+        or flags.get("controller")
+        or user.get("controller")
+        or load_toml(DEFAULT)["controller"]
+    )
+    if isinstance(chosen, str) and chosen in FAMILY_DEFAULTS:
+        _refuse_foreign(user, chosen, f" in {str(path)!r}")
+        _refuse_foreign(flags, chosen, " (command line)")
+    cfg = controller_defaults(chosen if isinstance(chosen, str) else "aftsc")
+    cfg = _merge(cfg, user)
+    cfg = _merge(cfg, flags)
+    cfg["controller"] = chosen
     return cfg
 
 
@@ -81,12 +161,13 @@ def check_config(cfg: dict) -> None:
         cfg["preset"],
         "must be paper or realistic",
     )
-    req(
-        cfg["adaptation"] in ("oracle", "realizable"),
-        "adaptation",
-        cfg["adaptation"],
-        "must be oracle or realizable",
-    )
+    if cfg["controller"] not in FAMILY_DEFAULTS:  # (avr-pss: no adaptation)
+        req(
+            cfg["adaptation"] in ("oracle", "realizable"),
+            "adaptation",
+            cfg["adaptation"],
+            "must be oracle or realizable",
+        )
     for key in ("steps", "batch", "seed"):
         v = cfg[key]
         req(
@@ -157,7 +238,7 @@ def check_config(cfg: dict) -> None:
         c["start"],
         "must be a finite number >= 1",
     )
-    o = cfg["options"]
+    o = cfg.get("options", {"phi_layer": 0.0})
     req(
         isinstance(o["phi_layer"], (int, float))
         and math.isfinite(o["phi_layer"])
@@ -203,3 +284,16 @@ def check_config(cfg: dict) -> None:
         cfg["gains"]["freeze"],
         "must be a list of gain names",
     )
+    from smibjax.controllers import controller_parameter_names
+
+    names = controller_parameter_names(cfg["controller"])
+    for key, given in (
+        ("gains.freeze", cfg["gains"]["freeze"]),
+        ("gains.bounds", list(cfg["gains"]["bounds"])),
+    ):
+        for n in given:
+            if n not in names:
+                raise ParameterError(
+                    f"unknown gain {n!r} in {key}: controller {cfg['controller']!r} "
+                    f"has {', '.join(names)}"
+                )

@@ -215,6 +215,10 @@ def run(
     train_step, _ = problem_module.engine(cfg, setup)
     step_fn = make_step(setup, opt, train_step)
     validate = make_validation(cfg, problem)
+    if not quiet:
+        from smibjax._process import say_compiling
+
+        say_compiling("the training step and the validation", "jit_run", "jit_reduce")
     if resume:
         state = load_checkpoint(out, opt, raw0)
     else:

@@ -49,19 +49,21 @@ def resolve_config(args) -> dict:
     """The default configuration, then --config, then the flags; validated."""
     from .config import check_config, load_config
 
-    cfg = load_config(args.config)
-    for key in ("init", "steps", "batch", "seed", "preset", "controller", "adaptation"):
-        v = getattr(args, key)
-        if v is not None:
-            cfg[key] = v
+    keys = ("init", "steps", "batch", "seed", "preset", "controller", "adaptation")
+    cfg = load_config(args.config, flags={k: getattr(args, k) for k in keys})
     check_config(cfg)
     return cfg
 
 
 def main(argv=None) -> int:
+    try:  # parsed before JAX loads: --help and usage errors answer at once
+        args = parse_args(argv)
+    except CLIError as e:
+        print(f"tuning.optimize: error: {e}", file=sys.stderr)
+        return 2
     from smibjax import configure
 
-    configure()
+    configure()  # before anything imports equinox or JAX
     from smibjax import ParameterError
     from smibjax._files import write_json
 
@@ -71,7 +73,6 @@ def main(argv=None) -> int:
     from .resume import SessionClock, start_mode
 
     try:
-        args = parse_args(argv)
         cfg = resolve_config(args)
         if args.resume and not args.out:
             raise UsageError("--resume needs --out DIR (the run to continue)")
@@ -86,6 +87,13 @@ def main(argv=None) -> int:
         total, sessions = clock.finish(time.perf_counter() - t0)
         # the wall time of all sessions of the run
         state = dataclasses.replace(state, wall_seconds=total, wall_sessions=sessions)
+        if not args.quiet:
+            print(
+                "writing the report: the best gains on the validation set and the "
+                "representative faults, the plots ...",
+                file=sys.stderr,
+                flush=True,
+            )
         finish(cfg, out, state)
         print(
             f"wrote {out}/gains.json, report.md, history.csv and plots "

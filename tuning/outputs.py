@@ -46,7 +46,7 @@ def gains_file(cfg: dict, gains, names=None) -> GainsFile:
         )
     return GainsFile(
         controller=controller,
-        adaptation=cfg["adaptation"],
+        adaptation=cfg.get("adaptation", "oracle"),  # (written for aftsc/asc only)
         plant={"preset": cfg["preset"], **limits},
         options=options,
         gains=values,

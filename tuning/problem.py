@@ -69,7 +69,7 @@ def initial_gains(cfg) -> dict[str, float]:
 
 def projection_box(cfg) -> EstimateBox | None:
     """[options] projection = [[th1_min, th1_max], [th2_min, th2_max]] or [] (off)."""
-    box = cfg["options"]["projection"]
+    box = cfg.get("options", {}).get("projection", [])
     if box in ([], None):
         return None
     try:
@@ -97,13 +97,12 @@ def continuation_scale(cfg, step: int) -> float:
 
 def build(cfg) -> Problem:
     init = initial_gains(cfg)
-    names = parameter_names(cfg)
     controller_cls = CONTROLLERS[cfg["controller"]]
     space = GainSpace.build(
         init,
-        [n for n in cfg["gains"]["freeze"] if n in names or n not in sj.GAIN_NAMES],
-        {k: v for k, v in cfg["gains"]["bounds"].items() if k in names},
-        float(cfg["gains"]["beta_abs_min"]),
+        list(cfg["gains"]["freeze"]),
+        dict(cfg["gains"]["bounds"]),
+        float(cfg["gains"].get("beta_abs_min", 0.0)),
         kinds=controller_cls.parameter_kinds(),
         make=controller_cls.parameter_type(),
     )
@@ -125,7 +124,7 @@ def build(cfg) -> Problem:
         space=space,
         plant=sj.Plant.preset(cfg["preset"]),
         weights=weights,
-        adaptation=cfg["adaptation"],
+        adaptation=cfg.get("adaptation", "oracle"),  # (avr-pss: none)
         train_t_end=float(t["t_end"]),
         train_dt=float(t["dt"]),
         input_smoothing=float(t["input_smoothing"]),
@@ -135,7 +134,7 @@ def build(cfg) -> Problem:
         train_checkpoints=int(t["checkpoints"]) or None,
         controller=cfg["controller"],
         projection=box,
-        phi_layer=float(cfg["options"]["phi_layer"]),
+        phi_layer=float(cfg.get("options", {}).get("phi_layer", 0.0)),
         train_solver=str(t["solver"]),
         train_rtol=float(t["rtol"]),
         train_atol=float(t["atol"]),

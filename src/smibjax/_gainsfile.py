@@ -90,14 +90,15 @@ class GainsFile:
             k: None if isinstance(v, float) and math.isinf(v) else v
             for k, v in self.plant.items()
         }
-        return {
-            "schema": self.schema,
-            "controller": self.controller,
-            "adaptation": self.adaptation,
-            "plant": plant,
-            "options": dict(self.options),
-            "gains": {k: float(v) for k, v in self.gains.items()},
-        }
+        out = {"schema": self.schema, "controller": self.controller}
+        if _has_adaptation(self.controller):  # (none, avr-pss have no adaptation)
+            out["adaptation"] = self.adaptation
+        out.update(
+            plant=plant,
+            options=dict(self.options),
+            gains={k: float(v) for k, v in self.gains.items()},
+        )
+        return out
 
 
 @dataclasses.dataclass(frozen=True)
@@ -117,12 +118,18 @@ class Context:
         for tables and files (infinite limits written as None)."""
         plant = {"preset": self.preset}
         plant.update({k: None if math.isinf(v) else v for k, v in self.plant.items()})
-        return {
-            "controller": self.controller,
-            "adaptation": self.adaptation,
-            "plant": plant,
-            "options": dict(self.options),
-        }
+        out = {"controller": self.controller}
+        if _has_adaptation(self.controller):
+            out["adaptation"] = self.adaptation
+        out.update(plant=plant, options=dict(self.options))
+        return out
+
+
+def _has_adaptation(controller: str) -> bool:
+    """True for a controller with an adaptation mode (the paper's law: aftsc, asc);
+    a gains file or summary of another records none."""
+    cls = CONTROLLERS.get(controller)
+    return cls is not None and cls.has_adaptation
 
 
 def _where(path) -> str:
@@ -159,7 +166,7 @@ def validate(data: dict, path=None) -> GainsFile:
             raise ParameterError(
                 f"unknown key {key!r}{where}: allowed are {', '.join(allowed)}"
             )
-    for key in ("controller", "adaptation", "gains"):
+    for key in ("controller", "gains"):
         if key not in data:
             raise ParameterError(f"{key!r} is missing{where} (schema {schema})")
     controller = data["controller"]
@@ -168,7 +175,11 @@ def validate(data: dict, path=None) -> GainsFile:
             f"controller = {controller!r}{where} is not allowed: must be one of "
             f"{', '.join(KNOWN_CONTROLLERS)}"
         )
-    adaptation = data["adaptation"]
+    if _has_adaptation(controller) and "adaptation" not in data:
+        raise ParameterError(f"'adaptation' is missing{where} (schema {schema})")
+    # a controller without adaptation (none, avr-pss): an entry (written by older
+    # versions) is read and ignored
+    adaptation = data.get("adaptation", DEFAULTS["adaptation"])
     if adaptation not in KNOWN_ADAPTATIONS:
         raise ParameterError(
             f"adaptation = {adaptation!r}{where} is not allowed: must be one of "
@@ -297,6 +308,20 @@ def resolve(
     stated = {"controller", "adaptation", "preset"}
     if gf.legacy:
         stated = {"controller"} if "alpha" in gf.gains else set()
+    if not _has_adaptation(gf.controller):
+        stated.discard("adaptation")  # (none, avr-pss: no adaptation to override)
+    if controller is not None and controller != gf.controller:
+        foreign = [
+            g
+            for g in gf.gains
+            if g != "alpha" and g not in controller_parameter_names(controller)
+        ]
+        if foreign:
+            raise ParameterError(
+                f"--controller {controller} cannot run the gains of {source} "
+                f"(controller {gf.controller}: {', '.join(foreign)}): drop "
+                f"--controller, or give a gains file of {controller}"
+            )
     out = {}
     for key in ("controller", "adaptation", "preset"):
         flag = flags[key]

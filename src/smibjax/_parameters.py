@@ -21,6 +21,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
 
+from ._names import PRESETS as _PRESETS
 from ._validate import ParameterError, is_concrete, require, require_finite
 
 __all__ = [
@@ -143,10 +144,7 @@ class Plant(eqx.Module):
         return cls(**{**PRESETS[name], **overrides})
 
 
-PRESETS: dict[str, dict[str, float]] = {
-    "paper": {},
-    "realistic": {"uf_min": -5.0, "uf_max": 5.0, "ur_min": -1.0, "ur_max": 1.0},
-}
+PRESETS: dict[str, dict[str, float]] = _PRESETS  # (defined jax-free in _names)
 
 
 class Fault(eqx.Module):

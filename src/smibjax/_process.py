@@ -83,3 +83,31 @@ def configure(
     jax.config.update("jax_enable_x64", True)
     if cache:
         enable_compilation_cache(cache_dir)
+
+
+def cache_state(*programs: str) -> str:
+    """The persistent compilation cache as seen before a compile: "off" (no cache
+    folder configured), "warm" (the folder holds an entry of one of `programs`, the
+    names JAX gives the jitted functions, e.g. "jit__simulate"; a call with other
+    shapes or options still compiles), else "cold"."""
+    import jax
+
+    folder = jax.config.jax_compilation_cache_dir
+    if not folder:
+        return "off"
+    try:
+        names = os.listdir(folder)
+    except OSError:
+        return "cold"
+    prefixes = tuple(f"{p}-" for p in programs)
+    return "warm" if any(n.startswith(prefixes) for n in names) else "cold"
+
+
+def say_compiling(what: str, *programs: str, file=None) -> None:
+    """Print 'compiling WHAT (cache: warm|cold|off)' on stderr: the line a long
+    command prints before its first compiled step, so that no wait is silent."""
+    print(
+        f"compiling {what} (cache: {cache_state(*programs)})",
+        file=file or sys.stderr,
+        flush=True,
+    )

@@ -52,16 +52,23 @@ def run() -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Entry point; returns the exit status."""
-    from .._process import configure
-
-    configure()
-    from .._parameters import ParameterError
-    from .options import CLIError, one_line
+    """Entry point; returns the exit status. The command line is parsed first (no
+    JAX: `--help` and usage errors answer at once), then the process is configured
+    (`smibjax.configure`), then the command runs."""
+    from .._commandline import CLIError, one_line
 
     args = None
     try:
         args = _parser().parse_args(argv)
+    except CLIError as e:
+        print(f"smibjax: error: {e}", file=sys.stderr)
+        return 2
+    from .._process import configure
+
+    configure()
+    from .._parameters import ParameterError
+
+    try:
         return args.func(args)
     except CLIError as e:
         print(f"smibjax: error: {e}", file=sys.stderr)

@@ -3,8 +3,6 @@ table on stdout and (with --out) a JSON file and its plot."""
 
 from __future__ import annotations
 
-from .._cct import check_options, critical_clearing_times, lane_kind
-from .._files import check_new_file, write_json
 from .grid import add_case_options
 from .options import (
     CLIError,
@@ -15,7 +13,6 @@ from .options import (
     controller_of,
     positive,
 )
-from .plotting import plot_cct
 
 __all__ = ["add_parser", "run", "add_cct_options", "check_args", "run_grouped"]
 
@@ -83,6 +80,8 @@ def add_parser(sub) -> None:
 
 def check_args(args) -> None:
     """The CCT options, checked by the library before any work."""
+    from .._cct import check_options
+
     check_options(
         args.fault_location,
         args.fault_time,
@@ -116,6 +115,7 @@ def run_grouped(args, sets, plant, op, init, progress=None) -> dict:
     """`critical_clearing_times` with the CCT options of `args`, once per kind of
     controller (`smibjax._cct.lane_kind`), merged in the order of `sets`; `progress`:
     a factory of one progress callback per call (e.g. `progress_bar`)."""
+    from .._cct import critical_clearing_times, lane_kind
     from .compare import merge_cct
 
     groups: dict[tuple, dict] = {}
@@ -168,6 +168,9 @@ def progress_bar(desc: str = "cct scan + bisection"):
 
 
 def run(args) -> int:
+    from .._files import check_new_file, write_json
+    from .plotting import plot_cct
+
     if args.case:
         from .grid import run_cct
 

@@ -10,17 +10,16 @@ adaptation mode, plant): the flags if given, else the file's, else the paper's
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from .._gainsfile import Context
+    from ..controllers.synergetic import Gains
+
 import argparse
 import math
 import sys
 from pathlib import Path
-
-import numpy as np
-
-from .._files import read_gains_file, write_json, write_text
-from .._gainsfile import Context, resolve
-from .._parameters import ParameterError
-from ..controllers.synergetic import GAIN_NAMES, Gains
 
 __all__ = [
     "BUILTIN_SETS",
@@ -63,6 +62,11 @@ def resolve_gain_set_context(
     with `sets` (gain overrides) applied on top. The context is the flag
     (`adaptation`, `preset`; None = not given) if given, else the file's, else the
     paper's; `messages` are the one-line warnings and notes to print."""
+    from .._files import read_gains_file
+    from .._gainsfile import resolve
+    from .._parameters import ParameterError
+    from ..controllers.synergetic import GAIN_NAMES
+
     sets = {k: v for k, v in (sets or {}).items() if k in GAIN_NAMES}
     if spec in BUILTIN_SETS:
         controller, values = BUILTIN_SETS[spec]
@@ -186,6 +190,8 @@ def compare_table(
 def plot_compare(rows: dict[str, dict], cct: dict, path) -> None:
     """Left: stable fraction per set; middle: settling-time distributions (stable
     scenarios); right: CCT against fault location per set."""
+    import numpy as np
+
     from .plotting import plot_islands, save_figure, subplots
 
     names = list(rows)
@@ -225,6 +231,8 @@ def plot_compare(rows: dict[str, dict], cct: dict, path) -> None:
 def write_compare(out: Path, summaries, rows, cct, contexts=None) -> None:
     """compare.md, compare.json and compare.png in `out`; `contexts`: name ->
     `Context.describe()` of each set."""
+    from .._files import write_json, write_text
+
     contexts = contexts or {}
     table = compare_table(summaries, cct, contexts)
     crit = cct.get("criterion", "settled")

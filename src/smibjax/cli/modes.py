@@ -4,14 +4,16 @@ parameter (`--sweep`)."""
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    import numpy as np
+
 import csv
 import io
 import math
 import sys
 
-import numpy as np
-
-from .._files import check_new_file, write_json, write_text
 from .options import CLIError, parse_sets
 
 __all__ = ["add_parser", "run", "parse_sweep"]
@@ -67,6 +69,8 @@ def add_parser(sub) -> None:
 
 def parse_sweep(text: str) -> tuple[str, np.ndarray]:
     """`PARAM=lo:hi:n` as (PARAM, n values from lo to hi); one-line `CLIError`."""
+    import numpy as np
+
     name, sep, rng = text.partition("=")
     parts = rng.split(":")
     if not sep or not name.strip() or len(parts) != 3:
@@ -92,6 +96,7 @@ def parse_sweep(text: str) -> tuple[str, np.ndarray]:
 def _outputs(args):
     """The output paths, checked before any work."""
     from .._figures import check_plot_path
+    from .._files import check_new_file
 
     out = {}
     for opt, key in (("--out", "out"), ("--csv", "csv"), ("--plot", "plot")):
@@ -244,6 +249,7 @@ def _analyse(case, op):
 
 
 def _plot_modes(path, ms, title):
+    import numpy as np
     from matplotlib.figure import Figure
 
     from .plotting import save_figure
@@ -296,6 +302,8 @@ def _damping_lines(ax, wmax, left):
 
 def _window(lam_em, lam_all):
     """(left, wmax) of a complex-plane window around the electromechanical modes."""
+    import numpy as np
+
     if lam_em.size:
         left = min(-1.0, 2.0 * float(lam_em.real.min()))
         wmax = 1.3 * float(lam_em.imag.max())
@@ -305,6 +313,8 @@ def _window(lam_em, lam_all):
 
 
 def _complex_plane(ax, ms):
+    import numpy as np
+
     lam = np.array([m.eigenvalue for m in ms])
     kinds = [m.kind for m in ms]
     em = lam[np.array([k == "electromechanical" for k in kinds], dtype=bool)]
@@ -329,6 +339,8 @@ def _complex_plane(ax, ms):
 
 
 def _plot_locus(path, param, values, tracks):
+    import numpy as np
+
     from .plotting import save_figure, subplots
 
     fig, ax = subplots(figsize=(7, 5))
@@ -353,6 +365,7 @@ def _plot_locus(path, param, values, tracks):
 def _assign(lam, last):
     """The eigenvalues of `lam` (upper half plane) matched one to one to `last`
     (minimum total distance), so that two tracked modes never take the same one."""
+    import numpy as np
     from scipy.optimize import linear_sum_assignment
 
     cand = lam[lam.imag >= 0]
@@ -363,6 +376,9 @@ def _assign(lam, last):
 
 
 def _sweep(args, case, sets, param, values, outs):
+    import numpy as np
+
+    from .._files import write_json, write_text
     from ..grid.modes import damping_ratios, linearize
     from ..grid.params import ParamError, get_param, set_params
 
@@ -435,6 +451,8 @@ def _sweep(args, case, sets, param, values, outs):
 
 
 def run(args) -> int:
+    from .._files import write_json, write_text
+
     sweep = parse_sweep(args.sweep) if args.sweep is not None else None
     outs = _outputs(args)
     if not (math.isfinite(args.load_factor) and args.load_factor > 0):

@@ -3,13 +3,15 @@ resumable run folder (`smibjax.cli.runs`), in this process or on Dask."""
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from .._montecarlo import MonteCarloSpec
+
 import contextlib
 import sys
 from pathlib import Path
 
-from .._montecarlo import MonteCarloSpec
-from .._parameters import PLANT_NAMES, ParameterError
-from ..controllers import describe
 from .grid import add_case_options, add_montecarlo_options
 from .options import (
     CLIError,
@@ -21,7 +23,6 @@ from .options import (
     positive,
     read_dist,
 )
-from .runs import run_montecarlo
 
 __all__ = ["add_parser", "run", "add_mc_options", "spec_from_args", "runner_of"]
 
@@ -69,6 +70,9 @@ def add_parser(sub) -> None:
 
 def spec_from_args(args, params, plant, op, init, dist) -> MonteCarloSpec:
     """The `MonteCarloSpec` of the command's options (validated by the spec)."""
+    from .._montecarlo import MonteCarloSpec
+    from .._parameters import PLANT_NAMES
+
     return MonteCarloSpec(
         n=args.n,
         seed=args.seed,
@@ -101,6 +105,9 @@ def runner_of(args):
 def run_folder(spec, out: Path, resume: bool, runner, title: str):
     """`run_montecarlo`, with a cluster failure (e.g. a chunk that keeps killing its
     workers) turned into one line that says how to finish the run."""
+    from .._parameters import ParameterError
+    from .runs import run_montecarlo
+
     try:
         return run_montecarlo(spec, out, resume=resume, runner=runner, title=title)
     except Exception as e:
@@ -113,6 +120,9 @@ def run_folder(spec, out: Path, resume: bool, runner, title: str):
 
 
 def run(args) -> int:
+    from ..controllers import describe
+    from .report import plant_text
+
     if args.case:
         from .grid import run_montecarlo as run_case
 
@@ -124,8 +134,14 @@ def run(args) -> int:
     out = Path(args.out) if args.out else fresh_out("montecarlo")
     title = (
         f"{describe(params)}; {args.n} scenarios, seed {args.seed}, "
-        f"{args.preset} plant, {args.adaptation} adaptation"
+        + plant_text(plant, args.preset)
+        + (
+            f", {args.adaptation} adaptation"
+            if "adaptation" in args.context.describe()
+            else ""
+        )
     )
+    print(f"monte carlo: {title}", file=sys.stderr)
     with runner_of(args) as runner:
         _, summary = run_folder(spec, out, args.resume, runner, title)
     print_summary(summary, out)

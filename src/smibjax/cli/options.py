@@ -12,21 +12,15 @@ import argparse
 import dataclasses
 import math
 import sys
+from typing import TYPE_CHECKING
 
 from .._commandline import CLIError, Parser, fresh_out, one_line
-from .._files import read_data, read_gains, read_gains_file
-from .._gainsfile import Context, resolve
-from .._options import SolverOptions
-from .._parameters import (
-    PLANT_NAMES,
-    PRESETS,
-    InitialEstimates,
-    OperatingPoint,
-    ParameterError,
-    Plant,
-)
-from .._scenarios import ScenarioDistribution
-from ..controllers import CONTROLLERS, as_controller, parameter_set
+from .._names import CONTROLLER_NAMES, PRESETS
+
+if TYPE_CHECKING:  # (the library loads in the functions: --help imports no JAX)
+    from .._gainsfile import Context
+    from .._options import SolverOptions
+    from .._scenarios import ScenarioDistribution
 
 __all__ = [
     "CLIError",
@@ -68,11 +62,11 @@ def add_common(p: Parser, several_controllers: bool = False) -> None:
     --adaptation, --max-steps, --phi-layer."""
     p.add_argument(
         "--controller",
-        choices=list(CONTROLLERS),
+        choices=list(CONTROLLER_NAMES),
         nargs="+" if several_controllers else None,
         default=None,
         help=(
-            "one or more of " + ", ".join(CONTROLLERS) + " (default: the gains "
+            "one or more of " + ", ".join(CONTROLLER_NAMES) + " (default: the gains "
             "file's, else aftsc)"
             if several_controllers
             else "aftsc (alpha = 5/7), asc (alpha = 1), none (E_fd0 held, u_r = 0) "
@@ -128,6 +122,9 @@ def with_phi_layer(ctx: Context, layer: float | None) -> Context:
     """`ctx` with its `phi_layer` option replaced by `layer` (None: unchanged),
     validated by the controller's `check_options`; a controller without the
     option (none, avr-pss) refuses it with one line."""
+    from .._parameters import ParameterError
+    from ..controllers import CONTROLLERS
+
     if layer is None:
         return ctx
     cls = CONTROLLERS[ctx.controller]
@@ -163,6 +160,8 @@ def add_max_steps(p: Parser) -> None:
 def solver_options(args) -> SolverOptions:
     """The adaptive solver's options of a command with `add_tolerances` and
     `add_max_steps` (--rtol, --atol, --max-steps)."""
+    from .._options import SolverOptions
+
     return SolverOptions(rtol=args.rtol, atol=args.atol, max_steps=args.max_steps)
 
 
@@ -213,6 +212,15 @@ def build_parameters(
     itself), then the gains file's values (or `gain_values`, already read; with
     `complete`, all nine gains), then `--set` values; the plant `preset`, then
     `plant_values` (a gains file's plant context), then `--set`."""
+    from .._files import read_gains
+    from .._parameters import (
+        PLANT_NAMES,
+        InitialEstimates,
+        OperatingPoint,
+        Plant,
+    )
+    from ..controllers import CONTROLLERS, parameter_set
+
     sets = dict(sets or {})
     if gain_values is None:
         gain_values = read_gains(gains_file, complete=complete) if gains_file else {}
@@ -247,6 +255,8 @@ def controller_of(params, adaptation: str, context: Context | None = None):
     """The controller that runs: `params` itself (none, avr-pss) or the paper's law
     with `params` as gains, the adaptation and the options (projection, phi_layer)
     of the context."""
+    from ..controllers import as_controller
+
     return as_controller(
         params, adaptation, context.options if context is not None else {}
     )
@@ -257,6 +267,9 @@ def gains_context(path, controller=None, adaptation=None, preset=None, complete=
     flags given (None: not given): flag, else file, else the paper's default. The
     warnings (a flag contradicting the file) and notes (a flat file) go to stderr,
     one line each."""
+    from .._files import read_gains_file
+    from .._gainsfile import resolve
+
     gf = read_gains_file(path, complete=complete) if path else None
     ctx, values, messages = resolve(
         gf, controller, adaptation, preset, source=f"--gains {path}"
@@ -282,6 +295,8 @@ def build_from_args(args, complete=False, controller=None):
     --adaptation: the context resolved (`gains_context`) and written back into
     `args` (controller, preset, adaptation, context), so the rest of the command
     uses it. Returns (parameters, Plant, OperatingPoint, InitialEstimates)."""
+    from ..controllers import CONTROLLERS
+
     sets = parse_sets(args.set)
     ctx, values = gains_context(
         args.gains,
@@ -290,6 +305,11 @@ def build_from_args(args, complete=False, controller=None):
         args.preset,
         complete,
     )
+    if args.adaptation is not None and not CONTROLLERS[ctx.controller].has_adaptation:
+        raise CLIError(
+            f"--adaptation {args.adaptation} does not apply to controller "
+            f"{ctx.controller!r}: only the paper's law (aftsc, asc) adapts"
+        )
     warn_plant_sets(ctx, sets)
     ctx = with_phi_layer(ctx, getattr(args, "phi_layer", None))
     args.preset, args.adaptation = ctx.preset, ctx.adaptation
@@ -310,12 +330,18 @@ def build_from_args(args, complete=False, controller=None):
 def parameter_values(params) -> dict[str, float]:
     """A parameter set's tunable values (the paper's nine gains plus c1, c2, or a
     controller's own), as plain floats."""
+    from ..controllers import as_controller
+
     return as_controller(params).parameters()
 
 
 def read_dist(path) -> ScenarioDistribution:
     """A scenario distribution from a TOML/JSON table of name = [lo, hi] (None: the
     default distribution)."""
+    from .._files import read_data
+    from .._parameters import ParameterError
+    from .._scenarios import ScenarioDistribution
+
     if path is None:
         return ScenarioDistribution()
     data = read_data(path)

@@ -7,7 +7,30 @@ import math
 from .._metrics import Metrics
 from ..controllers import describe
 
-__all__ = ["metrics_dict", "format_summary", "markdown_table"]
+__all__ = ["metrics_dict", "format_summary", "markdown_table", "plant_text"]
+
+
+def _limit(lo: float, hi: float) -> str | None:
+    if math.isinf(lo) and math.isinf(hi):
+        return None
+    return f"[{lo:g}, {hi:g}]"
+
+
+def plant_text(plant, preset: str | None = None) -> str:
+    """The plant a result is for, with its input limits (pu), e.g. 'realistic plant
+    (u_f in [-5, 5], u_r in [-1, 1] pu)' or 'paper plant (no input limits)'; `plant`
+    is a `Plant` or a table of its fields."""
+
+    def get(k):
+        v = plant.get(k, math.inf) if isinstance(plant, dict) else getattr(plant, k)
+        return math.inf if v is None else float(v)
+
+    uf = _limit(get("uf_min"), get("uf_max"))
+    ur = _limit(get("ur_min"), get("ur_max"))
+    parts = [f"u_f in {uf}" if uf else None, f"u_r in {ur}" if ur else None]
+    parts = [x for x in parts if x]
+    limits = ", ".join(parts) + " pu" if parts else "no input limits"
+    return f"{preset + ' ' if preset else ''}plant ({limits})"
 
 
 def metrics_dict(m: Metrics) -> dict:
@@ -44,10 +67,18 @@ def format_summary(gains, fault, plant, traj, m: Metrics, args=None) -> str:
         verdict = "stable"
     else:
         verdict = "UNSTABLE: delta not back in its band at t_end"
+    where = plant_text(plant, getattr(args, "preset", None))
+    adaptation = getattr(args, "adaptation", None)
+    context = getattr(args, "context", None)
+    if context is not None and "adaptation" not in context.describe():
+        adaptation = None  # (none, avr-pss: no adaptation)
+    if adaptation:
+        where += f", {adaptation} adaptation"
     lines = [
         f"{head}; fault {float(fault.t_fault):g} s, cleared "
         f"{float(fault.t_clear):g} s, reclosed {float(fault.t_reclose):g} s, "
         f"lam = {float(fault.lam):g}, Xf = {float(fault.Xf):g}",
+        f"  on:                  {where}",
         f"  result:              {verdict}",
         f"  settling time delta: {_s(d['settling_delta'])} (band 0.01 rad, from fault)",
         f"  settling time Vt:    {_s(d['settling_Vt'])} (band 0.01 pu)",

@@ -6,17 +6,6 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import numpy as np
-
-from .._files import atomic_write, write_json, write_npz, write_text
-from .._metrics import metrics
-from .._options import SaveOptions
-from .._parameters import Fault, Plant
-from .._simulate import simulate
-from ..controllers.synergetic import Gains
-from .plotting import plot_figure, trajectory_arrays
-from .report import markdown_table, metrics_dict
-
 __all__ = ["GAIN_SETS", "reproduce", "add_parser", "run"]
 
 GAIN_SETS = {
@@ -27,6 +16,10 @@ _CONTROLLERS = {"AFTSC": "aftsc", "ASC": "asc"}
 
 
 def _write_csv(path: Path, a: dict) -> None:
+    import numpy as np
+
+    from .._files import atomic_write
+
     cols = [
         "t",
         "delta",
@@ -65,6 +58,15 @@ def _write_csv(path: Path, a: dict) -> None:
 
 def reproduce(out: Path, preset: str = "paper", t_end: float = 10.0) -> dict:
     """Run the four cases, write figures/data/table under `out`; returns the metrics."""
+    from .._files import write_json, write_npz, write_text
+    from .._metrics import metrics
+    from .._options import SaveOptions
+    from .._parameters import Fault, Plant
+    from .._simulate import simulate
+    from ..controllers.synergetic import Gains
+    from .plotting import plot_figure, trajectory_arrays
+    from .report import markdown_table, metrics_dict
+
     plant = Plant.preset(preset)
     fault = Fault()
     theta = (-float(plant.D), float(plant.Pm))

@@ -180,6 +180,12 @@ def run_montecarlo(
     done_rows = spec.n - sum(
         spec.chunk_range(k)[1] - spec.chunk_range(k)[0] for k in todo
     )
+    if progress and todo:
+        from .._process import say_compiling
+
+        say_compiling(
+            "the batched simulator" + (" on the workers" if runner else ""), "jit_run"
+        )
     runner = runner or in_process_runner
     t0, computed = time.perf_counter(), 0
     with tqdm(

@@ -7,15 +7,6 @@ import math
 import sys
 from pathlib import Path
 
-import numpy as np
-
-from .._figures import check_plot_path
-from .._files import check_new_file, write_npz
-from .._metrics import metrics
-from .._options import SaveOptions
-from .._parameters import Fault
-from .._simulate import simulate
-from ..controllers import describe
 from .grid import add_case_options
 from .options import (
     CLIError,
@@ -28,8 +19,6 @@ from .options import (
     positive,
     solver_options,
 )
-from .plotting import plot_trajectory, trajectory_arrays
-from .report import format_summary, metrics_dict
 
 __all__ = ["add_parser", "run"]
 
@@ -67,6 +56,16 @@ def add_parser(sub) -> None:
 
 
 def run(args) -> int:
+    import numpy as np
+
+    from .._files import write_npz
+    from .._metrics import metrics
+    from .._options import SaveOptions
+    from .._parameters import Fault
+    from .._simulate import simulate
+    from .plotting import plot_trajectory, trajectory_arrays
+    from .report import format_summary, metrics_dict
+
     if args.case:
         from .grid import run_simulate
 
@@ -80,6 +79,9 @@ def run(args) -> int:
         lam=args.fault_location,
         Xf=args.fault_reactance,
     )
+    from .._process import say_compiling
+
+    say_compiling("the simulation", "jit__simulate")
     traj = simulate(
         controller_of(gains, args.adaptation, args.context),
         fault,
@@ -94,11 +96,12 @@ def run(args) -> int:
     print(format_summary(gains, fault, plant, traj, m, args))
     arrays = trajectory_arrays(traj)
     if args.out:
+        adaptive = "adaptation" in args.context.describe()
         meta = {
             "gains": parameter_values(gains),
             "fault": {k: float(getattr(fault, k)) for k in fault.__dataclass_fields__},
             "plant": {k: float(getattr(plant, k)) for k in plant.__dataclass_fields__},
-            "adaptation": args.adaptation,
+            **({"adaptation": args.adaptation} if adaptive else {}),
             "context": args.context.describe(),
             "metrics": {  # NaN (not reached) as null
                 k: None if isinstance(v, float) and math.isnan(v) else v
@@ -123,6 +126,9 @@ def _outputs(args) -> tuple[Path | None, Path | None]:
     """--out (.npz appended when missing) and --plot paths, refused before the run
     when they exist (without --force), name a folder, the same file, or (for --plot)
     a format that cannot be written."""
+    from .._figures import check_plot_path
+    from .._files import check_new_file
+
     out = plot = None
     if args.out:
         out = Path(args.out)
@@ -154,9 +160,15 @@ def _warn_dt_save(args) -> None:
 
 
 def _title(gains, fault, args) -> str:
+    from ..controllers import describe
+
     return (
         f"{describe(gains)}; fault {float(fault.t_fault):g} -> "
         f"{float(fault.t_clear):g} s, reclose {float(fault.t_reclose):g} s, "
-        f"lam {float(fault.lam):g}, Xf {float(fault.Xf):g}; {args.preset} plant, "
-        f"{args.adaptation} adaptation"
+        f"lam {float(fault.lam):g}, Xf {float(fault.Xf):g}; {args.preset} plant"
+        + (
+            f", {args.adaptation} adaptation"
+            if "adaptation" in args.context.describe()
+            else ""
+        )
     )
