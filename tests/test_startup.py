@@ -22,7 +22,7 @@ def _modules_after(code: str) -> list[str]:
     probe = (
         "import sys\n"
         f"try:\n    {code}\nexcept SystemExit:\n    pass\n"
-        f"print(','.join(m for m in {HEAVY!r} if m in sys.modules))"
+        f"print('LOADED:' + ','.join(m for m in {HEAVY!r} if m in sys.modules))"
     )
     env = {**os.environ, "PYTHONPATH": f"{ROOT / 'src'}:{ROOT}"}
     r = subprocess.run(
@@ -33,7 +33,9 @@ def _modules_after(code: str) -> list[str]:
         env=env,
         check=True,
     )
-    return [m for m in r.stdout.strip().splitlines()[-1].split(",") if m]
+    line = r.stdout.strip().splitlines()[-1]
+    assert line.startswith("LOADED:"), r.stdout[-500:]
+    return [m for m in line.removeprefix("LOADED:").split(",") if m]
 
 
 @pytest.mark.parametrize(

@@ -545,7 +545,11 @@ def test_avr_pss_gets_its_own_defaults():
         ("", ["--adaptation", "oracle"], "'adaptation' .* does not apply"),
         ("[gains]\nbeta_abs_min = 0.2\n", [], "'gains.beta_abs_min' .* not apply"),
         ('[gains]\nfreeze = ["k1"]\n', [], "unknown gain 'k1' in gains.freeze"),
-        ("[gains.bounds]\nbeta1 = [-2, -0.1]\n", [], "unknown gain 'beta1' in gains.bounds"),
+        (
+            "[gains.bounds]\nbeta1 = [-2, -0.1]\n",
+            [],
+            "unknown gain 'beta1' in gains.bounds",
+        ),
     ],
 )
 def test_a_key_that_does_not_apply_is_one_line(tmp_path, capsys, toml, argv, match):

@@ -7,8 +7,6 @@ from __future__ import annotations
 
 import os
 
-from matplotlib.figure import Figure
-
 from ._files import atomic_write
 
 __all__ = ["subplots", "save_figure", "plot_formats", "check_plot_path"]
@@ -45,6 +43,8 @@ def check_plot_path(path, option: str = "--plot"):
 def subplots(nrows: int = 1, ncols: int = 1, **kw):
     """(figure, axes) as `pyplot.subplots` makes them, without pyplot: `figsize`
     goes to the figure, the rest to `Figure.subplots`."""
+    from matplotlib.figure import Figure  # (loaded only when a figure is drawn)
+
     fig = Figure(figsize=kw.pop("figsize", None))
     return fig, fig.subplots(nrows, ncols, **kw)
 

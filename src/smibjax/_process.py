@@ -37,8 +37,9 @@ def use_host_devices(minimum: int = 1) -> None:
 def enable_compilation_cache(path: str | None = None) -> str | None:
     """Turn on JAX's persistent compilation cache in `path` (default:
     $SMIBJAX_CACHE_DIR, else ~/.cache/smibjax/jax; an empty SMIBJAX_CACHE_DIR turns
-    it off). Programs that took >= 0.5 s to compile are kept, so a new process skips
-    XLA compilation (tracing still runs). Returns the folder."""
+    it off). Programs that took >= 0.1 s to compile are kept (the simulator, and
+    the command line's metrics program, 0.3 s), so a new process skips XLA
+    compilation (tracing still runs). Returns the folder."""
     import jax
 
     if path is None:
@@ -47,7 +48,7 @@ def enable_compilation_cache(path: str | None = None) -> str | None:
         )
     if path:
         jax.config.update("jax_compilation_cache_dir", str(path))
-        jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.5)
+        jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.1)
     return path or None
 
 

@@ -28,14 +28,19 @@ __all__ = [
 _STYLES = ["-", ":", "--", "-."]
 
 
-def trajectory_arrays(traj) -> dict[str, np.ndarray]:
-    """The trajectory's signals as NumPy arrays (the npz/CSV/plot layout)."""
+def trajectory_arrays(traj, numpy: bool = True) -> dict[str, np.ndarray]:
+    """The trajectory's signals as NumPy arrays (the npz/CSV/plot layout); with
+    `numpy=False` as the JAX values (to compute them inside a jitted function)."""
+    import jax.numpy as jnp
+
+    xp = np if numpy else jnp
     keys = ("t", "delta", "omega", "E", "B", "Vt", "theta_hat", "phi", "u_f", "u_r")
-    out = {k: np.asarray(getattr(traj, k)) for k in keys}
-    out["stable"] = np.asarray(traj.stable, dtype=bool)
-    out["lost_sync"] = np.asarray(traj.lost_sync, dtype=bool)
-    out["budget_exhausted"] = np.asarray(traj.budget_exhausted, dtype=bool)
-    out["t_stop"] = np.asarray(traj.t_stop, dtype=float)
+    keys += ("u_f_cmd", "u_r_cmd")
+    out = {k: xp.asarray(getattr(traj, k)) for k in keys}
+    out["stable"] = xp.asarray(traj.stable, dtype=bool)
+    out["lost_sync"] = xp.asarray(traj.lost_sync, dtype=bool)
+    out["budget_exhausted"] = xp.asarray(traj.budget_exhausted, dtype=bool)
+    out["t_stop"] = xp.asarray(traj.t_stop, dtype=float)
     return out
 
 

@@ -59,11 +59,10 @@ def run(args) -> int:
     import numpy as np
 
     from .._files import write_npz
-    from .._metrics import metrics
     from .._options import SaveOptions
     from .._parameters import Fault
     from .._simulate import simulate
-    from .plotting import plot_trajectory, trajectory_arrays
+    from .plotting import plot_trajectory
     from .report import format_summary, metrics_dict
 
     if args.case:
@@ -92,9 +91,8 @@ def run(args) -> int:
         save=SaveOptions(args.t_end, args.dt_save),
     )
     _warn_dt_save(args)
-    m = metrics(traj)
+    m, arrays = _observe(traj)
     print(format_summary(gains, fault, plant, traj, m, args))
-    arrays = trajectory_arrays(traj)
     if args.out:
         adaptive = "adaptation" in args.context.describe()
         meta = {
@@ -120,6 +118,28 @@ def run(args) -> int:
         )
         print(f"wrote {plot}")
     return 0
+
+
+_OBSERVE = None
+
+
+def _observe(traj):
+    """(metrics, arrays) of a trajectory: `metrics` and `trajectory_arrays` as one
+    compiled program (the persistent cache keeps it), where run eagerly their ~100
+    small operations compiled one kernel each (measured: 1.1 s of CPU per
+    `simulate`, 0.04 s traced + 0.34 s compiled once as one program)."""
+    global _OBSERVE
+    import jax
+    import numpy as np
+
+    from .._metrics import metrics
+    from .plotting import trajectory_arrays
+
+    if _OBSERVE is None:
+        _OBSERVE = jax.jit(lambda tr: (metrics(tr), trajectory_arrays(tr, numpy=False)))
+    m, arrays = _OBSERVE(traj)
+    m = jax.tree_util.tree_map(lambda x: jax.device_get(x), m)
+    return m, {k: np.asarray(v) for k, v in arrays.items()}
 
 
 def _outputs(args) -> tuple[Path | None, Path | None]:
