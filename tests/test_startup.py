@@ -196,3 +196,34 @@ def test_a_second_identical_run_hits_the_persistent_cache(tmp_path, argv):
         assert f"compilation cache miss for '{p}'" not in log, p
     assert "compiling " in first and "(cache: cold)" in first
     assert "compiling " in second and "(cache: warm)" in second
+
+
+@pytest.mark.parametrize(
+    ("argv", "shown"),
+    [
+        (["simulate"], ["--t-end T_END", "(default: 10.0)", "(default: 0.5)"]),
+        (["montecarlo"], ["(default: 1000)"]),
+        (["cct"], ["--tol", "(default: 0.001)"]),
+        (["reproduce"], ["(default: results/reproduce)", "(default: paper)"]),
+    ],
+)
+def test_help_shows_the_defaults(capsys, argv, shown):
+    """Issue 32: --n, --fault-time, --t-end, --tol, reproduce --out showed no
+    default."""
+    from smibjax.cli import main
+
+    with pytest.raises(SystemExit):
+        main([*argv, "--help"])
+    text = " ".join(capsys.readouterr().out.split())
+    for s in shown:
+        assert s in text, s
+
+
+def test_tuner_help_shows_the_config_defaults_and_a_whole_description(capsys):
+    from tuning.optimize import main
+
+    with pytest.raises(SystemExit):
+        main(["--help"])
+    text = " ".join(capsys.readouterr().out.split())
+    assert "(default: 100, from tuning/configs/default.toml)" in text
+    assert "over batches of fault scenarios;" in text

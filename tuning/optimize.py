@@ -25,22 +25,54 @@ __all__ = ["main", "parse_args"]
 _CONTROLLERS = ("aftsc", "asc", "avr-pss")  # the tunable ones (none has no parameters)
 
 
+def _defaults() -> dict:
+    """configs/default.toml, read without the library (for --help: no JAX)."""
+    import tomllib
+
+    path = Path(__file__).parent / "configs" / "default.toml"
+    return tomllib.loads(path.read_text(encoding="utf-8"))
+
+
 def parse_args(argv):
-    p = Parser(prog="python -m tuning.optimize", description=__doc__.splitlines()[0])
+    d = _defaults()
+
+    def dflt(key):
+        return f" (default: {d[key]}, from tuning/configs/default.toml)"
+
+    p = Parser(
+        prog="python -m tuning.optimize",
+        description="Tune the controller gains with optax over batches of fault "
+        "scenarios; checkpoints, resume, report. Flags override --config, which "
+        "overrides tuning/configs/default.toml; the defaults of one controller "
+        "family (the paper's law's continuation, frozen gains and bounds) apply "
+        "to it only.",
+    )
     p.add_argument("--config", help="TOML file overriding configs/default.toml")
-    p.add_argument("--init", help="'paper' or a gains file (JSON/TOML)")
-    p.add_argument("--steps", type=int, help="optimizer steps")
-    p.add_argument("--batch", type=int, help="training scenarios per step")
-    p.add_argument("--seed", type=int, help="seed of the training batches")
+    p.add_argument("--init", help="'paper' or a gains file (JSON/TOML)" + dflt("init"))
+    p.add_argument("--steps", type=int, help="optimizer steps" + dflt("steps"))
+    p.add_argument(
+        "--batch", type=int, help="training scenarios per step" + dflt("batch")
+    )
+    p.add_argument(
+        "--seed", type=int, help="seed of the training batches" + dflt("seed")
+    )
     p.add_argument("--out", help="output folder (default: a new folder under runs/)")
     p.add_argument(
         "--resume",
         action="store_true",
         help="continue the run in --out from its last checkpoint",
     )
-    p.add_argument("--preset", choices=["paper", "realistic"])
-    p.add_argument("--controller", choices=_CONTROLLERS)
-    p.add_argument("--adaptation", choices=["oracle", "realizable"])
+    p.add_argument(
+        "--preset",
+        choices=["paper", "realistic"],
+        help="plant input limits" + dflt("preset"),
+    )
+    p.add_argument("--controller", choices=_CONTROLLERS, help="" + dflt("controller"))
+    p.add_argument(
+        "--adaptation",
+        choices=["oracle", "realizable"],
+        help="the paper's law only (aftsc, asc)" + dflt("adaptation"),
+    )
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     return p.parse_args(argv)
 

@@ -9,11 +9,31 @@ import datetime
 import re
 from pathlib import Path
 
-__all__ = ["CLIError", "Parser", "one_line", "fresh_out"]
+__all__ = ["CLIError", "Parser", "DefaultsFormatter", "one_line", "fresh_out"]
 
 
 class CLIError(Exception):
     """A user error to report on one line."""
+
+
+class DefaultsFormatter(argparse.ArgumentDefaultsHelpFormatter):
+    """argparse's help with each option's default appended ("(default: 10.0)"),
+    except where there is none to show (None, False, an empty list) or the help
+    already states it."""
+
+    def _get_help_string(self, action):
+        text = action.help or ""
+        d = action.default
+        if (
+            d is None
+            or d is False
+            or d == []
+            or d is argparse.SUPPRESS
+            or "default" in text
+            or "%(default)" in text
+        ):
+            return text
+        return super()._get_help_string(action) if text else "(default: %(default)s)"
 
 
 class Parser(argparse.ArgumentParser):
@@ -23,6 +43,7 @@ class Parser(argparse.ArgumentParser):
 
     def __init__(self, *args, **kw):
         self.flags: set[str] = set()  # before argparse adds -h/--help
+        kw.setdefault("formatter_class", DefaultsFormatter)
         super().__init__(*args, **kw)
 
     def add_argument(self, *names, **kw):

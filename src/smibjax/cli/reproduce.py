@@ -133,7 +133,12 @@ def add_parser(sub) -> None:
 
     r = sub.add_parser("reproduce", help="the paper's section 4 case, figures + table")
     r.add_argument("--out", default="results/reproduce", help="output folder")
-    r.add_argument("--preset", choices=["paper", "realistic"], default="paper")
+    r.add_argument(
+        "--preset",
+        choices=["paper", "realistic"],
+        default="paper",
+        help="plant input limits: paper (none) or realistic",
+    )
     r.add_argument("--t-end", type=positive, default=10.0, help="horizon (s)")
     add_force(r)
     r.set_defaults(func=run, flags=r.flags)
