@@ -12,11 +12,19 @@ run before they load.
 
 from __future__ import annotations
 
+import contextlib
 import os
 import sys
 from pathlib import Path
 
-__all__ = ["configure", "enable_compilation_cache", "use_host_devices"]
+__all__ = [
+    "configure",
+    "enable_compilation_cache",
+    "use_host_devices",
+    "cache_state",
+    "say_compiling",
+    "announce_compile",
+]
 
 
 def use_host_devices(minimum: int = 1) -> None:
@@ -112,3 +120,30 @@ def say_compiling(what: str, *programs: str, file=None) -> None:
         file=file or sys.stderr,
         flush=True,
     )
+
+
+@contextlib.contextmanager
+def announce_compile(what: str, *programs: str, file=None):
+    """Within the block, print `say_compiling`'s line when JAX has traced the
+    first sizeable program (a trace of >= 0.05 s: after the inputs were checked,
+    so that a refused input stays one line, and before the compile or the cache
+    load). The cache state is read on entry."""
+    import jax.monitoring
+
+    state = cache_state(*programs)
+    said = []
+
+    def listener(event: str, duration: float, **kwargs) -> None:
+        if not said and event.endswith("jaxpr_trace_duration") and duration >= 0.05:
+            said.append(True)
+            print(
+                f"compiling {what} (cache: {state})",
+                file=file or sys.stderr,
+                flush=True,
+            )
+
+    jax.monitoring.register_event_duration_secs_listener(listener)
+    try:
+        yield
+    finally:
+        jax.monitoring.unregister_event_duration_listener(listener)

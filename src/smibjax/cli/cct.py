@@ -186,7 +186,10 @@ def run(args) -> int:
                 "is written beside it as .png)"
             )
     sets, (plant, op, init) = _sets(args)
-    res = run_grouped(args, sets, plant, op, init, progress_bar)
+    from .._process import announce_compile
+
+    with announce_compile("the CCT scan and bisection", "jit_run"):
+        res = run_grouped(args, sets, plant, op, init, progress_bar)
     res["context"] = args.contexts
     print_cct(res)
     if out is not None:

@@ -88,6 +88,114 @@ def resolve_gain_set_context(
     return label, _parameters(ctx.controller, {**values, **sets}), ctx, messages
 
 
+def _stated_context(spec: str):
+    """The context a schema gains file states (None: a built-in set or a flat
+    file, which state none)."""
+    if spec in BUILTIN_SETS:
+        return None
+    from .._files import read_gains_file
+    from .._gainsfile import resolve
+
+    gf = read_gains_file(spec)
+    return None if gf.legacy else resolve(gf)[0]
+
+
+def split_label(spec: str) -> tuple[str | None, str]:
+    """`--gains LABEL=FILE|NAME` as (LABEL, FILE|NAME); (None, spec) without a
+    label (an existing file whose name holds '=' is a file)."""
+    from .._parameters import ParameterError
+
+    label, sep, rest = spec.partition("=")
+    if not sep or Path(spec).exists():
+        return None, spec
+    if not label.strip() or not rest:
+        raise ParameterError(
+            f"--gains {spec!r} is not allowed: expected LABEL=FILE, LABEL=NAME, FILE "
+            "or NAME"
+        )
+    return label.strip(), rest
+
+
+def fair_contexts(
+    contexts: dict, stated: dict, preset_flag, adaptation_flag
+) -> tuple[dict, list[str]]:
+    """One plant and one adaptation (where it applies) for every set:
+    (contexts, notes). `stated`: label -> the context its gains file states (None
+    for a built-in set or a flat file). A flag wins for all; else the context the
+    files state (the most specific) is given to every set, with a note naming it;
+    files that state different ones are refused in one line."""
+    import dataclasses
+
+    from .._parameters import ParameterError
+    from ..controllers import CONTROLLERS
+    from .report import plant_text
+
+    notes = []
+
+    def plant_of(c):
+        return (c.preset, tuple(sorted(c.plant.items())))
+
+    if preset_flag is None:
+        plants = {plant_of(stated[n]) for n in stated if stated[n] is not None}
+        if len(plants) > 1:
+            named = ", ".join(
+                f"{n}: {plant_text(stated[n].plant | _limits_of(stated[n]), stated[n].preset)}"
+                for n in stated
+                if stated[n] is not None
+            )
+            raise ParameterError(
+                f"the gains files state different plants ({named}): give --preset "
+                "to compare them on one"
+            )
+        if plants:
+            (preset, items) = plants.pop()
+            moved = [n for n, c in contexts.items() if plant_of(c) != (preset, items)]
+            for n in moved:
+                contexts[n] = dataclasses.replace(
+                    contexts[n], preset=preset, plant=dict(items)
+                )
+            if moved:
+                c = next(c for c in stated.values() if c is not None)
+                notes.append(
+                    f"note: every set runs on the "
+                    f"{plant_text(c.plant | _limits_of(c), preset)} its gains "
+                    f"file states ({', '.join(moved)} too; --preset overrides)"
+                )
+    if adaptation_flag is None:
+        adaptive = {
+            n for n, c in contexts.items() if CONTROLLERS[c.controller].has_adaptation
+        }
+        modes = {
+            stated[n].adaptation
+            for n in adaptive
+            if stated[n] is not None and stated[n].controller in ("aftsc", "asc")
+        }
+        if len(modes) > 1:
+            raise ParameterError(
+                "the gains files state different adaptation modes "
+                f"({', '.join(sorted(modes))}): give --adaptation to compare them "
+                "under one"
+            )
+        if modes:
+            mode = modes.pop()
+            moved = [n for n in adaptive if contexts[n].adaptation != mode]
+            for n in moved:
+                contexts[n] = dataclasses.replace(contexts[n], adaptation=mode)
+            if moved:
+                notes.append(
+                    f"note: {', '.join(moved)} run with {mode} adaptation, as the "
+                    "gains files state (--adaptation overrides)"
+                )
+    return contexts, notes
+
+
+def _limits_of(ctx) -> dict:
+    """The preset's own limits of a context (under its overrides)."""
+    from .._names import PRESETS
+
+    return {**PRESETS[ctx.preset], **ctx.plant}
+
+
 def resolve_gain_set(
     spec: str, sets: dict[str, float] | None = None
 ) -> tuple[str, Gains]:
@@ -112,7 +220,7 @@ def context_text(ctx: dict) -> tuple[str, str, str]:
     ]
     return (
         ctx["controller"],
-        ctx["adaptation"],
+        ctx.get("adaptation", "-"),  # (none, avr-pss: no adaptation)
         preset + (f" ({', '.join(extra)})" if extra else ""),
     )
 
@@ -148,6 +256,21 @@ def islands_text(islands) -> str:
     return ", ".join(f"[{lo:g}, {hi:g}] s" for lo, hi in islands)
 
 
+def physics_cells(ph: dict) -> str:
+    """The physics cells of a compare row (a Monte Carlo summary's "physics"): mean
+    total variation of the applied inputs (chatter, pu), mean percentage of the run
+    on a limit, the largest commanded inputs (pu, before limits), the range of Vt
+    (pu) over all scenarios; "-" where the rows predate these columns."""
+    if not ph:
+        return " | ".join(["-"] * 4)
+    return (
+        f"{ph['tv_uf_mean']:.3g} / {ph['tv_ur_mean']:.3g} | "
+        f"{100 * ph['limit_time_uf_mean']:.1f} / {100 * ph['limit_time_ur_mean']:.1f} | "
+        f"{ph['peak_uf_cmd_max']:.3g} / {ph['peak_ur_cmd_max']:.3g} | "
+        f"{ph['Vt_min']:.3f}..{ph['Vt_max']:.3f}"
+    )
+
+
 def compare_table(
     summaries: dict[str, dict], cct: dict, contexts: dict[str, dict] | None = None
 ) -> str:
@@ -158,10 +281,12 @@ def compare_table(
     head = (
         "| gain set | controller | adaptation | plant | stable % (95% CI) | "
         "mean t_s (s) | p95 t_s (s) | p95 overshoot (rad) | "
+        "chatter u_f / u_r (pu) | time on a limit u_f / u_r (%) | "
+        "peak commanded u_f / u_r (pu) | Vt range (pu) | "
         + " | ".join(f"CCT @ {lam:g} (s)" for lam in locs)
         + " |"
     )
-    lines = [head, "|" + "---|" * (8 + len(locs))]
+    lines = [head, "|" + "---|" * (12 + len(locs))]
     for name, s in summaries.items():
         lo, hi = s["stable_fraction_ci95"]
         st, ov = s["settling_time"], s["overshoot"]
@@ -182,7 +307,9 @@ def compare_table(
             f"| {name} | {' | '.join(ctx)} | {100 * s['stable_fraction']:.1f} "
             f"({100 * lo:.1f}-"
             f"{100 * hi:.1f}) | {_fmt(st.get('mean'))} | {_fmt(st.get('p95'))} | "
-            f"{_fmt(ov.get('p95'), '.3f')} | " + " | ".join(cells) + " |"
+            f"{_fmt(ov.get('p95'), '.3f')} | {physics_cells(s.get('physics', {}))} | "
+            + " | ".join(cells)
+            + " |"
         )
     return "\n".join(lines) + "\n"
 
@@ -226,6 +353,18 @@ def plot_compare(rows: dict[str, dict], cct: dict, path) -> None:
         a.grid(alpha=0.3)
     fig.tight_layout()
     save_figure(fig, path)
+
+
+def _dist_items(dist) -> list:
+    """(name, (lo, hi)) of a scenario distribution's ranges (a fixed value as
+    lo = hi)."""
+    out = []
+    for k, v in dist.to_dict().items():
+        if isinstance(v, (list, tuple)) and len(v) == 2:
+            out.append((k, (float(v[0]), float(v[1]))))
+        elif isinstance(v, (int, float)):
+            out.append((k, (float(v), float(v))))
+    return out
 
 
 def write_compare(out: Path, summaries, rows, cct, contexts=None) -> None:
@@ -308,19 +447,27 @@ def run(args) -> int:
     check_args(args)
     sets = parse_sets(args.set)
     specs = args.gains or ["paper", "paper-asc", "stable"]
-    gain_sets, contexts = {}, {}
-    for spec in specs:
+    gain_sets, contexts, stated = {}, {}, {}
+    for item in specs:
+        given, spec = split_label(item)
         label, g, ctx, messages = resolve_gain_set_context(
             spec, sets, args.adaptation, args.preset
         )
+        label = given or label
         for m in messages:
             print(f"smibjax: {m}", file=sys.stderr)
         warn_plant_sets(ctx, sets)
         ctx = with_phi_layer(ctx, args.phi_layer)
         base, i = label, 2
         while label in gain_sets:
+            if given:
+                raise CLIError(f"--gains label {given!r} is given twice")
             label, i = f"{base}-{i}", i + 1
         gain_sets[label], contexts[label] = g, ctx
+        stated[label] = _stated_context(spec)
+    contexts, notes = fair_contexts(contexts, stated, args.preset, args.adaptation)
+    for note in notes:
+        print(f"smibjax: {note}", file=sys.stderr)
     # each set under its own plant and adaptation: (plant, op, init) per set
     parts = {
         label: build_parameters(
@@ -373,6 +520,10 @@ def run(args) -> int:
         rows,
         res,
         {label: ctx.describe() for label, ctx in contexts.items()},
+    )
+    print(
+        "scenarios: "
+        + ", ".join(f"{k} in [{lo:g}, {hi:g}]" for k, (lo, hi) in _dist_items(dist))
     )
     print((out / "compare.md").read_text())
     print(f"wrote {out}/compare.md, compare.json, compare.png")

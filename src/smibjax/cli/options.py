@@ -336,8 +336,9 @@ def parameter_values(params) -> dict[str, float]:
 
 
 def read_dist(path) -> ScenarioDistribution:
-    """A scenario distribution from a TOML/JSON table of name = [lo, hi] (None: the
-    default distribution)."""
+    """A scenario distribution from a TOML/JSON table of name = [lo, hi], or from
+    the `[scenarios]` table of a tuning config (`D = []` there: the plant's own
+    damping); None: the default distribution."""
     from .._files import read_data
     from .._parameters import ParameterError
     from .._scenarios import ScenarioDistribution
@@ -347,4 +348,8 @@ def read_dist(path) -> ScenarioDistribution:
     data = read_data(path)
     if not isinstance(data, dict):
         raise ParameterError(f"--dist file {str(path)!r} must hold a table")
+    if isinstance(data.get("scenarios"), dict):  # a tuning config: its scenarios
+        data = {
+            k: v for k, v in data["scenarios"].items() if not (k == "D" and v == [])
+        }
     return ScenarioDistribution.from_dict(data)

@@ -78,18 +78,18 @@ def run(args) -> int:
         lam=args.fault_location,
         Xf=args.fault_reactance,
     )
-    from .._process import say_compiling
+    from .._process import announce_compile
 
-    say_compiling("the simulation", "jit__simulate")
-    traj = simulate(
-        controller_of(gains, args.adaptation, args.context),
-        fault,
-        plant,
-        op=op,
-        init=init,
-        solver=solver_options(args),
-        save=SaveOptions(args.t_end, args.dt_save),
-    )
+    with announce_compile("the simulation", "jit__simulate"):
+        traj = simulate(
+            controller_of(gains, args.adaptation, args.context),
+            fault,
+            plant,
+            op=op,
+            init=init,
+            solver=solver_options(args),
+            save=SaveOptions(args.t_end, args.dt_save),
+        )
     _warn_dt_save(args)
     m, arrays = _observe(traj)
     print(format_summary(gains, fault, plant, traj, m, args))
