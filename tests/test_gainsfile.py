@@ -111,7 +111,8 @@ def test_round_trip_every_command_uses_the_context(
     assert meta["adaptation"] == "realizable"
     assert meta["plant"]["uf_max"] == 5.0 and meta["plant"]["ur_min"] == -1.0
     assert meta["context"]["plant"]["preset"] == "realistic"
-    assert capsys.readouterr().err == ""  # nothing to warn about
+    err = capsys.readouterr().err  # nothing to warn about
+    assert "warning" not in err and "note" not in err
 
     mc = tmp_path / "mc"
     argv = ["montecarlo", "--gains", str(tuned), "--n", "2", "--chunk", "2"]
@@ -134,9 +135,9 @@ def test_round_trip_every_command_uses_the_context(
             res[k] = per[k] if len(names) == 1 else {n: per[k] for n in names}
         return types.SimpleNamespace(to_dict=lambda: res)
 
-    import smibjax.cli.cct
+    import smibjax._cct
 
-    monkeypatch.setattr(smibjax.cli.cct, "critical_clearing_times", fake_cct)
+    monkeypatch.setattr(smibjax._cct, "critical_clearing_times", fake_cct)
     cct = tmp_path / "c.json"
     argv = ["cct", "--gains", str(tuned), "--fault-location", "0.5", "--out", str(cct)]
     assert main(argv) == 0
@@ -153,21 +154,23 @@ def test_round_trip_every_command_uses_the_context(
     argv += ["--chunk", "2", "--t-end", "3", "--fault-location", "0.5"]
     assert main([*argv, "--out", str(cmp)]) == 0
     table = (cmp / "compare.md").read_text()
+    # issue 32: a comparison is fair: the built-in set runs on the plant and with
+    # the adaptation the file states (before: the paper plant, oracle), with a note
     assert "| run | aftsc | realizable | realistic |" in table
-    assert "| stable | aftsc | oracle | paper |" in table
+    assert "| stable | aftsc | realizable | realistic |" in table
     data = json.loads((cmp / "compare.json").read_text())
     assert data["context"]["run"]["adaptation"] == "realizable"
     assert data["context"]["run"]["plant"]["uf_max"] == 5.0
-    spec = json.loads((cmp / "run" / "run.json").read_text())["spec"]
-    assert spec["adaptation"] == "realizable" and spec["plant"]["uf_max"] == 5.0
-    spec = json.loads((cmp / "stable" / "run.json").read_text())["spec"]
-    assert spec["adaptation"] == "oracle"
-    assert float(spec["plant"]["uf_max"]) == float("inf")  # the paper plant
-    # one CCT sweep per context: each set under its own plant and adaptation
+    for name in ("run", "stable"):
+        spec = json.loads((cmp / name / "run.json").read_text())["spec"]
+        assert spec["adaptation"] == "realizable" and spec["plant"]["uf_max"] == 5.0
+    # one CCT sweep: every set on one plant under one adaptation
     by_set = {n: (float(p.uf_max), kw["adaptation"]) for s, p, kw in seen for n in s}
-    assert by_set == {"run": (5.0, "realizable"), "stable": (float("inf"), "oracle")}
+    assert by_set == {"run": (5.0, "realizable"), "stable": (5.0, "realizable")}
     err = capsys.readouterr().err
-    assert "warning" not in err and "note" not in err
+    assert "warning" not in err
+    assert "note: every set runs on the realistic plant (u_f in [-5, 5]" in err
+    assert "note: stable run with realizable adaptation" in err
 
 
 def test_a_contradicting_flag_wins_with_one_warning(tuned, tmp_path, capsys):
@@ -268,3 +271,61 @@ def test_adaptation_flag_for_a_controller_without_one_is_one_line(tmp_path, caps
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and "does not apply to controller" in err
     assert not out.exists()
+
+
+def test_compare_refuses_files_that_state_different_plants(tuned, tmp_path, capsys):
+    """Two gains files tuned on different plants: one line, exit 2, unless --preset
+    puts every set on one."""
+    data = json.loads(tuned.read_text())
+    other = tmp_path / "paper.json"
+    other.write_text(json.dumps({**data, "plant": {"preset": "paper"}}))
+    out = tmp_path / "cmp"
+    argv = ["compare", "--gains", str(tuned), "--gains", str(other), "--out", str(out)]
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "state different plants" in err, err
+    assert "give --preset" in err and not out.exists()
+
+
+def test_compare_labels_and_physics_columns():
+    from smibjax.cli.compare import compare_table, split_label
+
+    assert split_label("tuned=runs/a/gains.json") == ("tuned", "runs/a/gains.json")
+    assert split_label("avr-pss") == (None, "avr-pss")
+    with pytest.raises(sj.ParameterError, match="expected LABEL=FILE"):
+        split_label("=x.json")
+    ph = {
+        "tv_uf_mean": 12.5,
+        "tv_ur_mean": 0.25,
+        "limit_time_uf_mean": 0.125,
+        "limit_time_ur_mean": 0.0,
+        "peak_uf_cmd_max": 4500.0,
+        "peak_ur_cmd_max": 3.0,
+        "Vt_min": 0.2,
+        "Vt_max": 1.25,
+    }
+    summary = {
+        "stable_fraction": 1.0,
+        "stable_fraction_ci95": [0.9, 1.0],
+        "settling_time": {"mean": 2.0, "p95": 3.0},
+        "overshoot": {"p95": 0.5},
+        "physics": ph,
+    }
+    cct = {
+        "fault_location": [0.5],
+        "window": 1.5,
+        "sets": {"a": {"cct": [0.3], "status": ["ok"], "islands": [[]]}},
+    }
+    table = compare_table({"a": summary}, cct)
+    assert "chatter u_f / u_r (pu) | time on a limit u_f / u_r (%)" in table
+    assert "| 12.5 / 0.25 | 12.5 / 0.0 | 4.5e+03 / 3 | 0.200..1.250 | 0.300 |" in table
+
+
+def test_dist_takes_a_tuning_configs_scenarios():
+    """Issue 32: `--dist tuning/configs/default.toml` was refused ("unknown scenario
+    key 'controller'"); it is the tuner's distribution, D drawn in [0.1, 0.4]."""
+    from helpers import ROOT
+    from smibjax.cli.options import read_dist
+
+    dist = read_dist(ROOT / "tuning" / "configs" / "default.toml").to_dict()
+    assert dist["D"] == [0.1, 0.4] and dist["clear_duration"] == [0.05, 0.25]

@@ -115,8 +115,10 @@ def run_grouped(args, sets, plant, op, init, progress=None) -> dict:
     """`critical_clearing_times` with the CCT options of `args`, once per kind of
     controller (`smibjax._cct.lane_kind`), merged in the order of `sets`; `progress`:
     a factory of one progress callback per call (e.g. `progress_bar`)."""
-    from .._cct import critical_clearing_times, lane_kind
+    from .. import _cct  # (looked up at call time: tests replace the engine)
     from .compare import merge_cct
+
+    critical_clearing_times, lane_kind = _cct.critical_clearing_times, _cct.lane_kind
 
     groups: dict[tuple, dict] = {}
     for name, ctrl in sets.items():

@@ -189,6 +189,17 @@ def fair_contexts(
     return contexts, notes
 
 
+def _preset_limits(plant: dict) -> dict:
+    """A described plant's limits: its preset's, under its overrides (None: no
+    limit)."""
+    from .._names import PRESETS
+
+    return {
+        **PRESETS[plant["preset"]],
+        **{k: v for k, v in plant.items() if k != "preset"},
+    }
+
+
 def _limits_of(ctx) -> dict:
     """The preset's own limits of a context (under its overrides)."""
     from .._names import PRESETS
@@ -375,9 +386,18 @@ def write_compare(out: Path, summaries, rows, cct, contexts=None) -> None:
     contexts = contexts or {}
     table = compare_table(summaries, cct, contexts)
     crit = cct.get("criterion", "settled")
+    from .report import plant_text
+
+    plants = sorted(
+        {
+            plant_text(c["plant"] | _preset_limits(c["plant"]), c["plant"]["preset"])
+            for c in contexts.values()
+        }
+    )
+    where = f"Plant: {'; '.join(plants)}.\n\n" if plants else ""
     write_text(
         out / "compare.md",
-        f"# Gain sets compared\n\nCCT criterion: {crit}.\n\n" + table,
+        f"# Gain sets compared\n\n{where}CCT criterion: {crit}.\n\n" + table,
     )
     write_json(
         out / "compare.json",
