@@ -59,21 +59,62 @@ def plot_hist(out: Path, m0, m1) -> None:
     save_figure(fig, out / "settling_hist.png")
 
 
-def plot_trajectories(out: Path, runs: dict) -> None:
-    fig, axes = subplots(len(runs), 1, figsize=(8, 2.6 * len(runs)), sharex=True)
-    for ax, (title, pair) in zip(np.atleast_1d(axes), runs.items(), strict=True):
+def plot_trajectories(out: Path, runs: dict, events: dict | None = None) -> None:
+    """One row per representative scenario: delta (rad), the field voltage u_f and
+    the SVC input u_r (pu; applied, and the tuned controller's command before the
+    limits, dotted, clipped to the applied range with its peak stated), initial
+    (dashed) against tuned (solid) gains; the fault, clearing and reclosing times
+    (`events`: title -> (t_fault, t_clear, t_reclose)) marked."""
+    from smibjax.cli.plotting import mark_events
+
+    events = events or {}
+    n = len(runs)
+    fig, axes = subplots(n, 3, figsize=(15, 2.9 * n + 0.4), sharex=True, squeeze=False)
+    for row, (title, pair) in zip(axes, runs.items(), strict=True):
         for (label, tr), style in zip(pair.items(), ("--", "-"), strict=True):
-            t, d = np.asarray(tr.t), np.array(tr.delta)
+            t = np.asarray(tr.t)
+            cut = t > float(tr.t_stop) if bool(tr.lost_sync) else np.zeros_like(t, bool)
             if bool(tr.lost_sync):
-                d[t > float(tr.t_stop)] = np.nan
                 label += f" (lost sync at {float(tr.t_stop):.2f} s)"
-            ax.plot(t, d, style, label=label)
-        ax.axhline(float(tr.delta_e), color="k", lw=0.6)
-        ax.set_title(title, fontsize=9)
-        ax.set_ylabel("delta (rad)")
-        ax.legend(fontsize=8)
-        ax.grid(alpha=0.3)
-    np.atleast_1d(axes)[-1].set_xlabel("t (s)")
+            for ax, key in zip(row, ("delta", "u_f", "u_r"), strict=True):
+                y = np.array(getattr(tr, key), dtype=float)
+                y[cut] = np.nan
+                ax.plot(t, y, style, lw=1.3, label=label)
+            if label.startswith("tuned"):
+                for ax, key, applied in zip(
+                    row[1:], ("u_f_cmd", "u_r_cmd"), ("u_f", "u_r"), strict=True
+                ):
+                    c = np.array(getattr(tr, key), dtype=float)
+                    a = np.array(getattr(tr, applied), dtype=float)
+                    c[cut], a[cut] = np.nan, np.nan
+                    lo, hi = np.nanmin(a), np.nanmax(a)
+                    pad = max(0.15 * (hi - lo), 1e-3)
+                    ax.plot(t, c, ":", lw=0.9, color="gray", label="tuned, commanded")
+                    if np.nanmin(c) < lo - pad or np.nanmax(c) > hi + pad:
+                        ax.set_ylim(lo - pad, hi + pad)
+                        peak = c[np.nanargmax(np.abs(c))]
+                        ax.text(
+                            0.99,
+                            0.96,
+                            f"command clipped: peak {peak:.3g} pu",
+                            transform=ax.transAxes,
+                            ha="right",
+                            va="top",
+                            fontsize=7,
+                            color="dimgray",
+                        )
+        row[0].axhline(float(tr.delta_e), color="k", lw=0.6)
+        row[0].set_title(title, fontsize=9, loc="left")
+        for ax, ylabel in zip(
+            row, ("delta (rad)", "u_f (pu)", "u_r (pu)"), strict=True
+        ):
+            ax.set_ylabel(ylabel)
+            ax.grid(alpha=0.3)
+            mark_events(ax, events.get(title), legend=ax is row[0])
+        row[0].legend(fontsize=7, loc="best")
+        row[1].legend(fontsize=7, loc="lower right")
+    for ax in axes[-1]:
+        ax.set_xlabel("t (s)")
     fig.tight_layout()
     save_figure(fig, out / "trajectories.png")
 
@@ -227,7 +268,14 @@ def write_report(cfg: dict, out: Path, state, problem, validate, val_scenarios) 
         for title, (f, d) in picks.items()
     }
     paper_tuned = runs[next(iter(runs))]["tuned"]
-    plot_trajectories(out, runs)
+    plot_trajectories(
+        out,
+        runs,
+        {
+            title: (float(f.t_fault), float(f.t_clear), float(f.t_reclose))
+            for title, (f, _) in picks.items()
+        },
+    )
     names = tuple(space.kinds)
     d0, d1 = gains_to_dict(g0, names), gains_to_dict(g1, names)
     rows = [

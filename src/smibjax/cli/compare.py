@@ -326,40 +326,84 @@ def compare_table(
 
 
 def plot_compare(rows: dict[str, dict], cct: dict, path) -> None:
-    """Left: stable fraction per set; middle: settling-time distributions (stable
-    scenarios); right: CCT against fault location per set."""
+    """Left: delta settling-time distributions (stable scenarios) per set; middle:
+    CCT against fault location per set (each set its own marker and a small
+    horizontal offset, so that equal curves stay visible; a CCT beyond the window
+    is an open triangle on the window line, not joined); right: the stable
+    fraction per set where it differs between sets, else the mean time on a
+    limit of u_f and u_r (%)."""
     import numpy as np
 
     from .plotting import plot_islands, save_figure, subplots
 
     names = list(rows)
-    fig, axes = subplots(1, 3, figsize=(16, 4.5))
-    frac = [float(np.mean(rows[n]["stable"])) for n in names]
-    axes[0].bar(range(len(names)), [100 * f for f in frac], color="C0")
-    axes[0].set_xticks(range(len(names)), names, rotation=20)
-    axes[0].set_ylabel("stable scenarios (%)")
-    axes[0].set_ylim(0, 105)
+    fig, axes = subplots(1, 3, figsize=(17, 5.2))
     data = []
     for n in names:
         ts = rows[n]["settling_time"][rows[n]["stable"].astype(bool)]
         data.append(ts[np.isfinite(ts)] if ts.size else np.array([np.nan]))
-    axes[1].boxplot(data, tick_labels=names)
-    axes[1].tick_params(axis="x", rotation=20)
-    axes[1].set_ylabel("delta settling time, stable scenarios (s)")
+    axes[0].boxplot(data, tick_labels=names)
+    axes[0].tick_params(axis="x", rotation=20)
+    axes[0].set_ylabel("delta settling time (s)")
+    axes[0].set_title("settling, stable scenarios", fontsize=10)
     loc = np.asarray(cct["fault_location"], dtype=float)
-    for n in names:
-        c = [np.nan if v is None else v for v in cct["sets"][n]["cct"]]
+    span = float(np.ptp(loc)) if loc.size > 1 else 1.0
+    markers = "osD^vP*X"
+    beyond_drawn = False
+    for i, n in enumerate(names):
+        dx = (i - (len(names) - 1) / 2) * 0.012 * span
+        c = np.array(
+            [np.nan if v is None else v for v in cct["sets"][n]["cct"]], dtype=float
+        )
         st = np.asarray(cct["sets"][n]["status"])
-        c = np.where(st == "exceeds_window", cct["window"], np.asarray(c, dtype=float))
-        (line,) = axes[2].plot(loc, c, "o-", label=n, ms=4)
-        plot_islands(axes[2], cct, n, line.get_color())
-    axes[2].axhline(cct["window"], color="k", ls="--", lw=1, label="window")
-    axes[2].set_xlabel("fault location")
-    axes[2].set_ylabel(
-        f"CCT (s), {cct.get('criterion', 'settled')}; window line: beyond it; "
-        "bars: stable again"
+        beyond = st == "exceeds_window"
+        c[beyond] = np.nan
+        (line,) = axes[1].plot(
+            loc + dx, c, marker=markers[i % len(markers)], ls="-", label=n, ms=5
+        )
+        if beyond.any():
+            axes[1].plot(
+                loc[beyond] + dx,
+                np.full(beyond.sum(), cct["window"]),
+                "^",
+                mfc="none",
+                mec=line.get_color(),
+                ms=8,
+                ls="none",
+                label=None if beyond_drawn else "beyond the window",
+            )
+            beyond_drawn = True
+        plot_islands(axes[1], cct, n, line.get_color())
+    axes[1].axhline(cct["window"], color="k", ls="--", lw=1)
+    axes[1].set_xlabel("fault location (fraction of the line)")
+    axes[1].set_ylabel("CCT (s)")
+    axes[1].set_title(
+        f"critical clearing time ({cct.get('criterion', 'settled')}); dashed: window",
+        fontsize=10,
     )
-    axes[2].legend(fontsize=8)
+    axes[1].legend(fontsize=8, loc="best")
+    frac = [100 * float(np.mean(rows[n]["stable"])) for n in names]
+    x = np.arange(len(names))
+    if len(set(frac)) > 1:
+        axes[2].bar(x, frac, color="C0")
+        axes[2].set_ylabel("stable scenarios (%)")
+        axes[2].set_ylim(0, 105)
+        axes[2].set_title("stable fraction", fontsize=10)
+    else:
+        for j, (key, label) in enumerate(
+            (("limit_time_uf", "u_f"), ("limit_time_ur", "u_r"))
+        ):
+            vals = [
+                100 * float(np.mean(rows[n][key])) if key in rows[n] else np.nan
+                for n in names
+            ]
+            axes[2].bar(x + (j - 0.5) * 0.38, vals, width=0.38, label=label)
+        axes[2].set_ylabel("mean time on a limit (%)")
+        axes[2].set_title(
+            f"input limits (every set {frac[0]:.0f}% stable)", fontsize=10
+        )
+        axes[2].legend(fontsize=8)
+    axes[2].set_xticks(x, names, rotation=20)
     for a in axes:
         a.grid(alpha=0.3)
     fig.tight_layout()

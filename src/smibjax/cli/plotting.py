@@ -71,6 +71,72 @@ def _panels(ax, runs: dict[str, dict], key: str, col=None, ylabel="", true=None)
     ax.grid(alpha=0.3)
 
 
+_EVENTS = (("fault", "firebrick"), ("clear", "darkorange"), ("reclose", "seagreen"))
+
+
+def mark_events(ax, events, legend: bool = False) -> None:
+    """Dotted vertical lines at the fault, clearing and reclosing times (s);
+    `events` = (t_fault, t_clear, t_reclose), None: none to mark."""
+    if events is None:
+        return
+    for (name, color), t in zip(_EVENTS, events, strict=True):
+        ax.axvline(t, color=color, ls=":", lw=1.1, label=name if legend else None)
+
+
+def tame_scale(ax, values, ratio: float = 20.0) -> str | None:
+    """Where one run dwarfs the rest (the largest |value| more than `ratio` times
+    the 98th percentile of all |values|), a symmetric-log y axis, linear up to
+    that percentile, with the peak stated on the panel; returns the note (None:
+    the linear axis was kept)."""
+    v = np.concatenate([np.ravel(np.asarray(x, dtype=float)) for x in values])
+    v = np.abs(v[np.isfinite(v)])
+    if v.size == 0:
+        return None
+    peak, typical = float(v.max()), float(np.percentile(v, 98))
+    if typical <= 0 or peak <= ratio * typical:
+        return None
+    ax.set_yscale("symlog", linthresh=typical)
+    note = f"symlog beyond |y| = {typical:.3g}; peak {peak:.3g}"
+    ax.text(
+        0.01,
+        0.04,
+        note,
+        transform=ax.transAxes,
+        ha="left",
+        va="bottom",
+        fontsize=7,
+        color="dimgray",
+    )
+    return note
+
+
+def _clip_commanded(ax, t, applied, commanded, label) -> None:
+    """The applied input (solid) and the commanded one before the limits (dashed);
+    the axis spans the applied input (with room), the commanded one is clipped to
+    it with its peak stated."""
+    ax.plot(t, applied, "-", lw=1.4, label=f"{label} applied")
+    ax.plot(t, commanded, "--", lw=1.0, alpha=0.8, label=f"{label} commanded")
+    a = np.asarray(applied, dtype=float)
+    c = np.asarray(commanded, dtype=float)
+    a, c = a[np.isfinite(a)], c[np.isfinite(c)]
+    if a.size and c.size:
+        lo, hi = float(a.min()), float(a.max())
+        pad = max(0.15 * (hi - lo), 0.05 * max(abs(lo), abs(hi)), 1e-3)
+        if c.min() < lo - pad or c.max() > hi + pad:
+            ax.set_ylim(lo - pad, hi + pad)
+            peak = float(c[np.argmax(np.abs(c))])
+            ax.text(
+                0.99,
+                0.96,
+                f"commanded clipped: peak {peak:.3g} pu",
+                transform=ax.transAxes,
+                ha="right",
+                va="top",
+                fontsize=7,
+                color="dimgray",
+            )
+
+
 def _note_lost(fig, runs):
     lost = [
         f"{k}: lost synchronism at t = {a['t_stop']:.3f} s (x)"
@@ -89,14 +155,17 @@ def plot_figure(
     path: str | os.PathLike,
     title: str,
     theta_true: tuple[float, float] = (-0.2, 1.0),
+    events=None,
 ) -> None:
     """One of the paper's figures for several runs (dict label -> arrays):
-    `states` (Fig. 3: delta, omega, Vt), `estimates` (Fig. 4: th_hat against the true
-    theta), `macro` (Fig. 5: phi1, phi2) or `inputs` (u_f, u_r, B)."""
+    `states` (Fig. 3: delta, omega deviation, Vt), `estimates` (Fig. 4: th_hat
+    against the true theta), `macro` (Fig. 5: phi1, phi2) or `inputs` (u_f, u_r, B).
+    A panel where one run dwarfs the rest gets a symmetric-log axis with the peak
+    stated (`tame_scale`); `events` = (t_fault, t_clear, t_reclose) are marked."""
     spec = {
         "states": [
             ("delta", None, "delta (rad)", None),
-            ("omega", None, "omega - ws (rad/s)", None),
+            ("omega", None, "omega - omega_s (rad/s)", None),
             ("Vt", None, "Vt (pu)", None),
         ],
         "estimates": [
@@ -111,8 +180,14 @@ def plot_figure(
         ],
     }[kind]
     fig, axes = subplots(len(spec), 1, figsize=(8, 2.3 * len(spec) + 0.6), sharex=True)
-    for ax, (key, col, ylabel, true) in zip(axes, spec, strict=True):
+    for i, (ax, (key, col, ylabel, true)) in enumerate(zip(axes, spec, strict=True)):
         _panels(ax, runs, key, col, ylabel, true)
+        ys = [
+            _masked(a, key) if col is None else _masked(a, key)[:, col]
+            for a in runs.values()
+        ]
+        tame_scale(ax, ys)
+        mark_events(ax, events, legend=i == 0)
     axes[0].legend(fontsize=8, loc="best")
     axes[-1].set_xlabel("t (s)")
     fig.suptitle(title, fontsize=11)
@@ -122,26 +197,56 @@ def plot_figure(
 
 
 def plot_trajectory(
-    a: dict, path: str | os.PathLike, title: str, theta_true: tuple[float, float]
+    a: dict,
+    path: str | os.PathLike,
+    title: str,
+    theta_true: tuple[float, float],
+    events=None,
+    adaptive: bool = True,
 ) -> None:
-    """All signals of one run on a 4 x 2 grid."""
+    """Every state and input of one run: delta, the speed deviation omega -
+    omega_s, Vt, E', the SVC susceptance B, the field voltage u_f and the SVC input
+    u_r (applied, and commanded before the limits, clipped with its peak stated);
+    for the paper's law (`adaptive`) also its estimates th_hat and macro-variables
+    phi. `events` = (t_fault, t_clear, t_reclose) are marked on every panel."""
     rows = [
         ("delta", None, "delta (rad)", None),
-        ("omega", None, "omega (rad/s)", None),
+        ("omega", None, "omega - omega_s (rad/s)", None),
         ("Vt", None, "Vt (pu)", None),
         ("E", None, "E' (pu)", None),
-        ("theta_hat", 0, "th1_hat", theta_true[0]),
-        ("theta_hat", 1, "th2_hat", theta_true[1]),
-        ("phi", 0, "phi1", None),
-        ("phi", 1, "phi2", None),
-        ("u_f", None, "u_f (pu)", None),
-        ("u_r", None, "u_r (pu)", None),
+        ("B", None, "SVC susceptance B (pu)", None),
     ]
-    fig, axes = subplots(5, 2, figsize=(11, 11), sharex=True)
-    for ax, (key, col, ylabel, true) in zip(axes.T.ravel(), rows, strict=True):
+    if adaptive:
+        rows += [
+            ("theta_hat", 0, "th1_hat (-D)", theta_true[0]),
+            ("theta_hat", 1, "th2_hat (Pm)", theta_true[1]),
+            ("phi", 0, "phi1", None),
+            ("phi", 1, "phi2", None),
+        ]
+    inputs = [("u_f", "u_f_cmd", "u_f (pu)"), ("u_r", "u_r_cmd", "u_r (pu)")]
+    n = len(rows) + len(inputs)
+    nrows = (n + 1) // 2
+    fig, axes = subplots(nrows, 2, figsize=(11, 2.1 * nrows + 0.8), sharex=True)
+    flat = list(axes.T.ravel())
+    for ax, (key, col, ylabel, true) in zip(flat, rows, strict=False):
         _panels(ax, {"run": a}, key, col, ylabel, true)
+    for ax, (key, cmd, ylabel) in zip(flat[len(rows) :], inputs, strict=False):
+        y = _masked(a, key)
+        c = _masked(a, cmd) if cmd in a else y
+        _clip_commanded(ax, a["t"], y, c, key)
+        ax.set_ylabel(ylabel)
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=7, loc="lower right")
+    for i, ax in enumerate(flat[:n]):
+        mark_events(ax, events, legend=i == 0)
+    flat[0].legend(fontsize=7, loc="best")
+    for ax in flat[n:]:
+        ax.set_visible(False)
     for ax in axes[-1]:
         ax.set_xlabel("t (s)")
+    if n % 2:
+        axes[-2][1].xaxis.set_tick_params(labelbottom=True)
+        axes[-2][1].set_xlabel("t (s)")
     fig.suptitle(title, fontsize=11)
     _note_lost(fig, {"run": a})
     fig.tight_layout(rect=(0, 0.02, 1, 1))

@@ -99,18 +99,23 @@ def reproduce(out: Path, preset: str = "paper", t_end: float = 10.0) -> dict:
             if set_name == "paper"
             else "stabilizing gains beta1 = beta2 = -1"
         )
-        for kind, fig in (
-            ("states", "fig3"),
-            ("estimates", "fig4"),
-            ("macro", "fig5"),
+        for kind, name in (
+            ("states", "fig3_states"),
+            ("estimates", "fig4_estimates"),
+            ("macro", "fig5_macro"),
             ("inputs", "inputs"),
         ):
             plot_figure(
                 kind,
                 runs,
-                out / f"{set_name}_{fig}_{kind}.png",
+                out / f"{set_name}_{name}.png",
                 f"{b} (solid AFTSC alpha = 5/7, dotted ASC alpha = 1)",
                 theta,
+                events=(
+                    float(fault.t_fault),
+                    float(fault.t_clear),
+                    float(fault.t_reclose),
+                ),
             )
     md = [
         "# Paper section 4 case: fault 0.5 s, cleared 0.7 s, reclosed 2.0 s, "

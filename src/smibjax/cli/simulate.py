@@ -115,6 +115,8 @@ def run(args) -> int:
             plot,
             _title(gains, fault, args),
             (-float(plant.D), float(plant.Pm)),
+            events=(args.fault_time, args.clear_time, args.reclose_time),
+            adaptive="adaptation" in args.context.describe(),
         )
         print(f"wrote {plot}")
     return 0
