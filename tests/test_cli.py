@@ -158,11 +158,14 @@ def test_reproduce_writes_figures_data_and_table(tmp_path, capsys):
         "paper_fig4_estimates.png",
         "paper_fig5_macro.png",
         "stabilized_fig3_states.png",
+        "paper_inputs.png",
+        "stabilized_inputs.png",
         "stabilized_aftsc.csv",
         "paper_asc.npz",
         "metrics.md",
     ]:
         assert (tmp_path / name).stat().st_size > 0, name
+    assert not list(tmp_path.glob("*_inputs_inputs*"))  # issue 32: one name
     table = json.loads((tmp_path / "metrics.json").read_text())
     assert table["paper AFTSC"]["stable"] is False
     assert table["stabilized AFTSC"]["stable"] is True
