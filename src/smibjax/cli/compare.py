@@ -452,6 +452,7 @@ def write_compare(out: Path, summaries, rows, cct, contexts=None) -> None:
 
 def add_parser(sub) -> None:
     from .cct import add_cct_options
+    from .grid import add_case_options, add_montecarlo_options
     from .montecarlo import add_mc_options
     from .options import add_max_steps, add_phi_layer, add_tolerances
 
@@ -491,6 +492,16 @@ def add_parser(sub) -> None:
     add_mc_options(k, 1000)
     add_cct_options(k, with_reactance=False)
     k.add_argument("--out", metavar="DIR", help="output folder (default: runs/...)")
+    add_case_options(k, events=False)
+    k.add_argument(
+        "--variant",
+        action="append",
+        default=[],
+        metavar="LABEL:MODEL.PARAM=VALUE[,...]",
+        help="with --case: a further parameter set to compare (repeatable); --param "
+        "values form the set 'param'; the case's own parameters are the set 'case'",
+    )
+    add_montecarlo_options(k)
     k.set_defaults(func=run, flags=k.flags)
 
 
@@ -508,6 +519,10 @@ def run(args) -> int:
         with_phi_layer,
     )
 
+    if args.case:
+        from .grid import run_compare
+
+        return run_compare(args)
     check_args(args)
     sets = parse_sets(args.set)
     specs = args.gains or ["paper", "paper-asc", "stable"]

@@ -382,25 +382,10 @@ def plot_case(a: dict, ev, case, path) -> None:
     save_figure(fig, path)
 
 
-def run_montecarlo(args) -> int:
-    """`montecarlo --case`: fault scenarios drawn over buses or lines; rows.csv,
-    summary.json in --out."""
-    import jax
-
-    from .._files import write_json, write_text
-    from ..grid.metrics import GridMetrics, grid_metrics
+def _grid_distribution(case, args):
+    """(FaultDistribution, n, chunk) of the Monte Carlo options; one-line CLIError."""
     from ..grid.scenarios import FaultDistribution, sample_events
-    from ..grid.simulate import simulate_batch
 
-    out = Path(args.out) if args.out else None
-    if (
-        out
-        and out.exists()
-        and any(out.iterdir())
-        and not getattr(args, "force", False)
-    ):
-        raise CLIError(f"--out {out}: the folder is not empty (use --force)")
-    case, op, pf = load(args)
     try:
         dist = FaultDistribution(
             kind=args.fault_kind,
@@ -424,13 +409,29 @@ def run_montecarlo(args) -> int:
         sample_events(case.system, dist, 1, args.seed)  # checks buses and lines
     except ValueError as e:
         raise CLIError(str(e)) from None
-    print(_describe(case, pf), file=sys.stderr)
-    rows = {k: [] for k in GridMetrics.FIELDS}
-    meta = {"bus": [], "t_fault": [], "t_clear": []}
-    t0 = time.perf_counter()
+    return dist, n, chunk
+
+
+def grid_rows(case, op, dist, n, chunk, args, desc="scenarios"):
+    """The `GridMetrics` rows (field -> list) and the scenarios (fault bus or
+    branch position, fault and clearing times) of `n` scenarios drawn from `dist`
+    with seed `args.seed` (chunk k with seed + its first index: the same scenarios
+    for every parameter set of the same case)."""
+    import jax
     from tqdm import tqdm
 
-    bar = tqdm(total=n, desc="compiling, then scenarios", unit="sc", file=sys.stderr)
+    from .._process import cache_state
+    from ..grid.metrics import GridMetrics, grid_metrics
+    from ..grid.scenarios import sample_events
+    from ..grid.simulate import simulate_batch
+
+    rows = {k: [] for k in GridMetrics.FIELDS}
+    meta = {"bus": [], "t_fault": [], "t_clear": []}
+    print(
+        f"compiling the batched case simulator (cache: {cache_state('jit_simulate_batch')})",
+        file=sys.stderr,
+    )
+    bar = tqdm(total=n, desc=desc, unit="sc", file=sys.stderr)
     for start in range(0, n, chunk):
         k = min(chunk, n - start)
         ev = sample_events(case.system, dist, chunk, args.seed + start)
@@ -446,6 +447,28 @@ def run_montecarlo(args) -> int:
         meta["t_clear"] += np.asarray(ev[0].t_off)[:k].tolist()
         bar.update(k)
     bar.close()
+    return rows, meta
+
+
+def run_montecarlo(args) -> int:
+    """`montecarlo --case`: fault scenarios drawn over buses or lines; rows.csv,
+    summary.json in --out."""
+    from .._files import write_json, write_text
+    from ..grid.metrics import GridMetrics
+
+    out = Path(args.out) if args.out else None
+    if (
+        out
+        and out.exists()
+        and any(out.iterdir())
+        and not getattr(args, "force", False)
+    ):
+        raise CLIError(f"--out {out}: the folder is not empty (use --force)")
+    case, op, pf = load(args)
+    dist, n, chunk = _grid_distribution(case, args)
+    print(_describe(case, pf), file=sys.stderr)
+    t0 = time.perf_counter()
+    rows, meta = grid_rows(case, op, dist, n, chunk, args)
     wall = time.perf_counter() - t0
     st = np.asarray(rows["stable"], dtype=bool)
     settle = np.asarray(rows["settling_angle"], dtype=float)
@@ -509,7 +532,12 @@ def _range(text, flag):
 
 def add_montecarlo_options(p) -> None:
     g = p.add_argument_group("multi-machine Monte Carlo (with --case)")
-    g.add_argument("--fault-kind", choices=("bus", "line"), default="bus")
+    g.add_argument(
+        "--fault-kind",
+        choices=("bus", "line"),
+        default="bus",
+        help="faults at buses or along lines",
+    )
     g.add_argument(
         "--fault-buses", default="all", help="bus numbers, e.g. 7,8,9 (default all)"
     )
@@ -560,4 +588,131 @@ def run_cct(args) -> int:
     if out:
         write_json(out, {"case": case.name, "params": _params(args.param), **res})
         print(f"wrote {out}")
+    return 0
+
+
+def _variant(text: str) -> tuple[str, list[str]]:
+    """`--variant LABEL:MODEL.PARAM=V[,MODEL.PARAM=V...]` as (LABEL, [items])."""
+    label, sep, rest = text.partition(":")
+    items = [s.strip() for s in rest.split(",") if s.strip()]
+    if not sep or not label.strip() or not items:
+        raise CLIError(
+            f"--variant {text!r} is not allowed: expected LABEL:MODEL.PARAM=VALUE"
+            "[,MODEL.PARAM=VALUE...]"
+        )
+    _params(items)  # one line for a malformed item
+    return label.strip(), items
+
+
+def case_sets(args) -> dict[str, list[str]]:
+    """The parameter sets of `compare --case`: the case's own ("case"), the
+    --param values ("param", if any), then each --variant; label -> --param
+    items."""
+    sets = {"case": []}
+    if args.param:
+        sets["param"] = list(args.param)
+    for text in args.variant or []:
+        label, items = _variant(text)
+        if label in sets:
+            raise CLIError(f"--variant label {label!r} is given twice")
+        sets[label] = items
+    if len(sets) < 2:
+        raise CLIError(
+            "compare --case needs a set to compare with the case's own: --param "
+            "MODEL.PARAM=VALUE or --variant LABEL:MODEL.PARAM=VALUE[,...]"
+        )
+    return sets
+
+
+def case_summary(rows: dict) -> dict:
+    """A `compare --case` row: stable fraction, settling of the COI angles (s;
+    mean and p95 over the stable scenarios), overshoot (rad; mean and p95), the
+    largest field voltage (pu), the lowest bus voltage (pu), runs that spent the
+    solver's step budget."""
+    st = np.asarray(rows["stable"], dtype=bool)
+    ts = np.asarray(rows["settling_angle"], dtype=float)[st]
+    ts = ts[np.isfinite(ts)]
+    ov = np.asarray(rows["overshoot"], dtype=float)
+
+    def q(a, p):
+        return float(np.percentile(a, p)) if a.size else None
+
+    return {
+        "n": int(st.size),
+        "stable_fraction": float(st.mean()),
+        "settling_mean": float(ts.mean()) if ts.size else None,
+        "settling_p95": q(ts, 95),
+        "overshoot_mean": float(ov.mean()),
+        "overshoot_p95": q(ov, 95),
+        "efd_peak": float(np.max(rows["efd_max"])),
+        "v_min": float(np.min(rows["v_min"])),
+        "exhausted": int(np.sum(rows["exhausted"])),
+    }
+
+
+def case_table(case_name: str, sets: dict, summaries: dict) -> str:
+    """Markdown: one row per parameter set of a case."""
+
+    def f(x, spec=".3f"):
+        return "-" if x is None else format(x, spec)
+
+    lines = [
+        f"| set ({case_name}) | parameters | stable % | mean settling (s) | "
+        "p95 settling (s) | mean overshoot (rad) | p95 overshoot (rad) | "
+        "peak Efd (pu) | lowest bus voltage (pu) |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
+    for label, s in summaries.items():
+        params = ", ".join(sets[label]) or "the case's own"
+        lines.append(
+            f"| {label} | {params} | {100 * s['stable_fraction']:.1f} | "
+            f"{f(s['settling_mean'], '.2f')} | {f(s['settling_p95'], '.2f')} | "
+            f"{f(s['overshoot_mean'])} | {f(s['overshoot_p95'])} | "
+            f"{f(s['efd_peak'])} | {f(s['v_min'])} |"
+        )
+    return "\n".join(lines) + "\n"
+
+
+def run_compare(args) -> int:
+    """`compare --case`: the case's own parameters against --param / --variant
+    sets, each on the same fault scenarios (the Monte Carlo options, one seed):
+    compare.md and compare.json in --out."""
+    import argparse
+
+    from .._files import write_json, write_text
+    from .options import fresh_out
+
+    sets = case_sets(args)
+    out = Path(args.out) if args.out else fresh_out("compare")
+    if out.exists() and any(out.iterdir()):
+        raise CLIError(
+            f"--out {str(out)!r} exists and is not empty: choose a new folder"
+        )
+    summaries, dist_text = {}, ""
+    for label, items in sets.items():
+        a = argparse.Namespace(**{**vars(args), "param": items})
+        case, op, pf = load(a)
+        dist, n, chunk = _grid_distribution(case, a)
+        if not summaries:
+            print(_describe(case, pf), file=sys.stderr)
+            dist_text = (
+                f"{n} faults ({dist.kind}), seed {args.seed}: fault at "
+                f"{dist.t_fault[0]:g}-{dist.t_fault[1]:g} s, cleared after "
+                f"{dist.clear_after[0]:g}-{dist.clear_after[1]:g} s"
+            )
+        rows, _ = grid_rows(case, op, dist, n, chunk, a, desc=label)
+        summaries[label] = case_summary(rows)
+    table = case_table(case.name, sets, summaries)
+    write_text(
+        out / "compare.md",
+        f"# Parameter sets compared on {case.name}\n\nScenarios: {dist_text} (the "
+        "same for every set).\n\n" + table,
+    )
+    write_json(
+        out / "compare.json",
+        {"case": case.name, "scenarios": dist_text, "sets": sets, "summary": summaries},
+    )
+    print(f"{case.name}: {dist_text}")
+    print(table)
+    print(f"wrote {out}/compare.md, compare.json")
     return 0
