@@ -389,6 +389,8 @@ def test_avr_pss_tunes_its_own_parameters(tmp_path):
     report = (out / "report.md").read_text()
     assert "Controller AVR-PSS, realistic plant;" in report
     assert "adaptation" not in report.split("\n")[2]
+    # issue 32: its report said it started from `paper`
+    assert "start the controller's defaults." in report.split("\n")[2]
     assert "final estimates" not in report and "boundary layer" not in report
 
 

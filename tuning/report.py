@@ -318,7 +318,13 @@ def write_report(cfg: dict, out: Path, state, problem, validate, val_scenarios) 
             else ""
         )
         + f"; true damping D {_d_range(cfg)}; {state.step} steps of batch "
-        f"{cfg['batch']} (seed {cfg['seed']}), start `{cfg['init']}`."
+        f"{cfg['batch']} (seed {cfg['seed']}), start "
+        + (
+            f"`{cfg['init']}`"
+            if cfg["init"] != "paper"
+            else ("the paper's gains" if synergetic else "the controller's defaults")
+        )
+        + "."
         + (
             f" Wall time {state.wall_seconds:.0f} s"
             + (

@@ -591,7 +591,12 @@ def run(args) -> int:
             n: controller_of(gain_sets[n], adaptation, contexts[n]) for n in labels
         }
         args_group = argparse.Namespace(**{**vars(args), "adaptation": adaptation})
-        results.append(run_grouped(args_group, lanes, plant, op, init, progress_bar))
+        from .._process import announce_compile
+
+        with announce_compile("the CCT scan and bisection", "jit_run"):
+            results.append(
+                run_grouped(args_group, lanes, plant, op, init, progress_bar)
+            )
     res = merge_cct(results, list(gain_sets))
     write_compare(
         out,

@@ -565,15 +565,18 @@ def run_cct(args) -> int:
         buses = _int_list(args.fault_buses) or [
             int(b) for b in np.asarray(case.system.buses.number)
         ]
-        res = critical_clearing_times_grid(
-            case,
-            op,
-            buses,
-            t_fault=args.fault_time,
-            t_max=args.cct_max,
-            tol=args.tol,
-            t_end=args.t_end,
-        )
+        from .._process import announce_compile
+
+        with announce_compile("the batched CCT bisection"):
+            res = critical_clearing_times_grid(
+                case,
+                op,
+                buses,
+                t_fault=args.fault_time,
+                t_max=args.cct_max,
+                tol=args.tol,
+                t_end=args.t_end,
+            )
     except ValueError as e:
         raise CLIError(str(e)) from None
     print(_describe(case, pf), file=sys.stderr)

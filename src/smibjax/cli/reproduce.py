@@ -62,6 +62,7 @@ def reproduce(out: Path, preset: str = "paper", t_end: float = 10.0) -> dict:
     from .._metrics import metrics
     from .._options import SaveOptions
     from .._parameters import Fault, Plant
+    from .._process import announce_compile
     from .._simulate import simulate
     from ..controllers.synergetic import Gains
     from .plotting import plot_figure, trajectory_arrays
@@ -75,7 +76,8 @@ def reproduce(out: Path, preset: str = "paper", t_end: float = 10.0) -> dict:
         runs = {}
         for label, ctrl in _CONTROLLERS.items():
             gains = Gains.paper(ctrl, **overrides)
-            traj = simulate(gains, fault, plant, save=SaveOptions(t_end=t_end))
+            with announce_compile(f"the simulation ({set_name} {label})"):
+                traj = simulate(gains, fault, plant, save=SaveOptions(t_end=t_end))
             a = trajectory_arrays(traj)
             runs[label] = a
             stem = f"{set_name}_{ctrl}"
