@@ -89,3 +89,42 @@ def test_a_trip_that_islands_is_refused(tmp_path, capsys):
     argv = ["simulate", "--case", "smib-gencls", "--trip-line", "1-2"]
     assert main(argv) == 2
     assert "islands the system" in capsys.readouterr().err
+
+
+def test_compare_a_case_against_its_parameter_sets(tmp_path, capsys):
+    """Issue 28 item 7: `compare --case` runs each parameter set on the same fault
+    scenarios; a machine with 4x the inertia swings less on the same faults."""
+    out = tmp_path / "cmp"
+    argv = ["compare", "--case", "smib-gencls", "--variant", "heavy:GENCLS.H=12"]
+    argv += ["--param", "GENCLS.D=1", "--n", "3", "--chunk", "3", "--t-end", "2"]
+    argv += ["--fault-buses", "2", "--fault-times", "0.2:0.3"]
+    argv += ["--clear-after", "0.05:0.1", "--out", str(out)]
+    assert main(argv) == 0
+    data = json.loads((out / "compare.json").read_text())
+    assert list(data["summary"]) == ["case", "param", "heavy"]
+    assert data["sets"]["heavy"] == ["GENCLS.H=12"]
+    s = data["summary"]
+    assert all(v["n"] == 3 for v in s.values())
+    assert s["case"]["stable_fraction"] == 1.0
+    assert s["heavy"]["overshoot_mean"] < s["case"]["overshoot_mean"]
+    table = (out / "compare.md").read_text()
+    assert "| heavy | GENCLS.H=12 |" in table and "| case | the case's own |" in table
+    assert "peak Efd (pu)" in table and "the same for every set" in table
+
+
+@pytest.mark.parametrize(
+    ("extra", "needle"),
+    [
+        ([], "needs a set to compare"),
+        (["--variant", "x"], "expected LABEL:MODEL.PARAM=VALUE"),
+        (["--variant", "a:GENCLS.H=2", "--variant", "a:GENCLS.H=3"], "given twice"),
+        (["--variant", "a:GENCLS.Q=2"], "GENCLS"),
+    ],
+)
+def test_compare_a_case_refuses_in_one_line(tmp_path, capsys, extra, needle):
+    out = tmp_path / "cmp"
+    argv = ["compare", "--case", "smib-gencls", "--n", "2", "--out", str(out)]
+    assert main([*argv, *extra]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and needle in err, err
+    assert not out.exists()

@@ -691,18 +691,20 @@ def run_compare(args) -> int:
         raise CLIError(
             f"--out {str(out)!r} exists and is not empty: choose a new folder"
         )
-    summaries, dist_text = {}, ""
+    loaded = {}  # every set loaded and checked before any run
     for label, items in sets.items():
         a = argparse.Namespace(**{**vars(args), "param": items})
         case, op, pf = load(a)
-        dist, n, chunk = _grid_distribution(case, a)
-        if not summaries:
-            print(_describe(case, pf), file=sys.stderr)
-            dist_text = (
-                f"{n} faults ({dist.kind}), seed {args.seed}: fault at "
-                f"{dist.t_fault[0]:g}-{dist.t_fault[1]:g} s, cleared after "
-                f"{dist.clear_after[0]:g}-{dist.clear_after[1]:g} s"
-            )
+        loaded[label] = (a, case, op, pf, *_grid_distribution(case, a))
+    a, case, op, pf, dist, n, chunk = loaded["case"]
+    print(_describe(case, pf), file=sys.stderr)
+    dist_text = (
+        f"{n} faults ({dist.kind}), seed {args.seed}: fault at "
+        f"{dist.t_fault[0]:g}-{dist.t_fault[1]:g} s, cleared after "
+        f"{dist.clear_after[0]:g}-{dist.clear_after[1]:g} s"
+    )
+    summaries = {}
+    for label, (a, case, op, pf, dist, n, chunk) in loaded.items():
         rows, _ = grid_rows(case, op, dist, n, chunk, a, desc=label)
         summaries[label] = case_summary(rows)
     table = case_table(case.name, sets, summaries)
