@@ -704,7 +704,7 @@ def run_compare(args) -> int:
         f"{dist.clear_after[0]:g}-{dist.clear_after[1]:g} s"
     )
     summaries = {}
-    for label, (a, case, op, pf, dist, n, chunk) in loaded.items():
+    for label, (a, case, op, _pf, dist, n, chunk) in loaded.items():
         rows, _ = grid_rows(case, op, dist, n, chunk, a, desc=label)
         summaries[label] = case_summary(rows)
     table = case_table(case.name, sets, summaries)
