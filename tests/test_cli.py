@@ -398,3 +398,16 @@ def test_dt_save_that_does_not_divide_the_horizon_says_what_it_did(capsys):
     # a refusal stays one line: no warning before it
     assert main(["simulate", "--t-end", "2", "--dt-save", "0.03", "--set", "H=0"]) == 2
     _one_line(capsys, "Plant.H = 0 is not allowed")
+
+
+def test_every_summary_names_its_plant_and_limits(tmp_path, capsys):
+    """Issue 32: `simulate --controller avr-pss` ran on the unlimited paper plant (Vt
+    up to 1.89 pu) and its summary never named the plant."""
+    assert main(["simulate", "--controller", "avr-pss", "--t-end", "3"]) == 0
+    out = capsys.readouterr().out
+    assert "on:                  paper plant (no input limits)" in out
+    assert "adaptation" not in out.splitlines()[1]  # avr-pss has none
+    argv = ["simulate", "--controller", "avr-pss", "--preset", "realistic"]
+    assert main([*argv, "--t-end", "3"]) == 0
+    out = capsys.readouterr().out
+    assert "realistic plant (u_f in [-5, 5], u_r in [-1, 1] pu)" in out
