@@ -349,7 +349,7 @@ def plot_compare(rows: dict[str, dict], cct: dict, path) -> None:
     loc = np.asarray(cct["fault_location"], dtype=float)
     span = float(np.ptp(loc)) if loc.size > 1 else 1.0
     markers = "osD^vP*X"
-    beyond_drawn = False
+    beyond_drawn = none_drawn = False
     for i, n in enumerate(names):
         dx = (i - (len(names) - 1) / 2) * 0.012 * span
         c = np.array(
@@ -373,7 +373,21 @@ def plot_compare(rows: dict[str, dict], cct: dict, path) -> None:
                 label=None if beyond_drawn else "beyond the window",
             )
             beyond_drawn = True
+        none = st == "unstable_at_min"
+        if none.any():
+            axes[1].plot(
+                loc[none] + dx,
+                np.zeros(none.sum()),
+                "x",
+                color=line.get_color(),
+                ms=9,
+                mew=2,
+                ls="none",
+                label=None if none_drawn else "none (unstable at the shortest)",
+            )
+            none_drawn = True
         plot_islands(axes[1], cct, n, line.get_color())
+    axes[1].set_ylim(bottom=-0.05)
     axes[1].axhline(cct["window"], color="k", ls="--", lw=1)
     axes[1].set_xlabel("fault location (fraction of the line)")
     axes[1].set_ylabel("CCT (s)")
@@ -412,8 +426,8 @@ def plot_compare(rows: dict[str, dict], cct: dict, path) -> None:
 
 def _dist_items(dist) -> list:
     """(name, (lo, hi)) of a scenario distribution's ranges (a fixed value as
-    lo = hi)."""
-    out = []
+    lo = hi; the damping D, when not drawn, as the plant's 0.2)."""
+    out = [] if "D" in dist.to_dict() else [("D (the plant's)", (0.2, 0.2))]
     for k, v in dist.to_dict().items():
         if isinstance(v, (list, tuple)) and len(v) == 2:
             out.append((k, (float(v[0]), float(v[1]))))
