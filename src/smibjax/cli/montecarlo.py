@@ -141,9 +141,9 @@ def run(args) -> int:
             else ""
         )
     )
-    print(f"monte carlo: {title}", file=sys.stderr)
     with runner_of(args) as runner:
         _, summary = run_folder(spec, out, args.resume, runner, title)
+    print(title)
     print_summary(summary, out)
     return 0
 
