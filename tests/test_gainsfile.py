@@ -177,6 +177,7 @@ def test_round_trip_every_command_uses_the_context(
     assert "warning" not in err
     assert "note: every set runs on the realistic plant (u_f in [-5, 5]" in err
     assert "note: stable run with realizable adaptation" in err
+    assert "D at the plant's 0.2" in err  # the tuner drew D: said, with the fix
 
 
 def test_a_contradicting_flag_wins_with_one_warning(tuned, tmp_path, capsys):

@@ -569,6 +569,13 @@ def run(args) -> int:
         for label, ctx in contexts.items()
     }
     dist = read_dist(args.dist)
+    if args.dist is None and any(c is not None for c in stated.values()):
+        print(
+            "smibjax: note: the scenarios keep the damping D at the plant's 0.2, where "
+            "the tuner draws it in [0.1, 0.4]: --dist tuning/configs/default.toml "
+            "compares on the tuner's distribution",
+            file=sys.stderr,
+        )
     out = Path(args.out) if args.out else fresh_out("compare")
     if out.exists() and any(out.iterdir()) and not args.resume:
         raise CLIError(
