@@ -536,7 +536,7 @@ def make_step(problem: GridProblem):
 
     def step(raw, opt_state, events, lfs, refs):
         (val, info), g = grad(raw, events, lfs, refs)
-        gn = float(optax.global_norm(g))
+        gn = float(optax.tree.norm(g))
         if not (math.isfinite(gn) and math.isfinite(float(val))):
             return raw, opt_state, val, info, gn, True
         upd, opt_state = problem.opt.update(g, opt_state, raw)

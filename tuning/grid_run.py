@@ -180,6 +180,21 @@ def _better(a: dict, b: dict, target: float) -> bool:
     return key(a) > key(b)
 
 
+_CACHE: dict = {}
+
+
+def _compiled(cfg, build_grid, make_step):
+    """(problem, step, validation) of a config, shared by the runs of one process
+    whose configs differ at most in `steps` (their jitted programs are reused)."""
+    key = json.dumps({k: v for k, v in cfg.items() if k != "steps"}, sort_keys=True)
+    if key not in _CACHE:
+        problem = build_grid(cfg)
+        step_fn, _ = make_step(problem)
+        _CACHE.clear()
+        _CACHE[key] = (problem, step_fn, _validation_fn(problem))
+    return _CACHE[key]
+
+
 def run_grid(
     cfg: dict,
     out: Path,
@@ -194,13 +209,11 @@ def run_grid(
     from .loop import Best, TrainState, load_checkpoint, save_checkpoint
     from .outputs import write_history
 
-    problem = build_grid(cfg)
+    problem, step_fn, val_fn = _compiled(cfg, build_grid, make_step)
     space = problem.space
     raw0 = space.to_raw(space.start)
     every = int(cfg["validation"]["every"])
     steps = int(cfg["steps"])
-    step_fn, _ = make_step(problem)
-    val_fn = _validation_fn(problem)
     held = _held_out(problem)
     if resume:
         state = load_checkpoint(out, problem.opt, raw0)
