@@ -274,9 +274,21 @@ def check_grid_config(cfg: dict) -> None:
             "must be an integer >= 1",
         )
     r = cfg["report"]
-    _req(_num(r["clear_after"]) and r["clear_after"] > 0, "report.clear_after",
-         r["clear_after"], "must be > 0")
-    _req(_num(r["load_factor"]) and r["load_factor"] > 0, "report.load_factor",
-         r["load_factor"], "must be > 0")
-    _req(_num(r["t_end"]) and r["t_end"] > 0.5 + r["clear_after"], "report.t_end",
-         r["t_end"], "must be after the reference fault's clearing (0.5 s + clear_after)")
+    _req(
+        _num(r["clear_after"]) and r["clear_after"] > 0,
+        "report.clear_after",
+        r["clear_after"],
+        "must be > 0",
+    )
+    _req(
+        _num(r["load_factor"]) and r["load_factor"] > 0,
+        "report.load_factor",
+        r["load_factor"],
+        "must be > 0",
+    )
+    _req(
+        _num(r["t_end"]) and r["t_end"] > 0.5 + r["clear_after"],
+        "report.t_end",
+        r["t_end"],
+        "must be after the reference fault's clearing (0.5 s + clear_after)",
+    )

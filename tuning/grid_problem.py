@@ -93,16 +93,13 @@ class GridSpace:
 
     def project(self, raw: dict) -> dict:
         lo, hi = self.raw_bounds()
-        return {
-            n: jnp.clip(raw[n], lo[k], hi[k]) for k, n in enumerate(self.names)
-        }
+        return {n: jnp.clip(raw[n], lo[k], hi[k]) for k, n in enumerate(self.names)}
 
 
 def load_case_from(cfg: dict):
     """The case of the `[case]` table (one-line `ParameterError` if it cannot be
     loaded)."""
     from smibjax.grid.case import CaseError, load_case
-
     from smibjax.grid.params import ParamError, set_params
 
     c = cfg["case"]
@@ -157,9 +154,7 @@ def make_space(case, gcfg: dict) -> GridSpace:
             get_param(case, follower)
             lm, ld, lp = parse_name(leader)
             fm, fd, fp = parse_name(follower)
-            hits = [
-                n for n in names if _base_name(n) == f"{lm}.{lp}" or n == leader
-            ]
+            hits = [n for n in names if _base_name(n) == f"{lm}.{lp}" or n == leader]
             if not hits:
                 raise ParamError(
                     f"gains.tie.{follower} = {leader!r}: {leader} is not trained"
@@ -192,8 +187,11 @@ def make_space(case, gcfg: dict) -> GridSpace:
                 f"gains.transform.{_base_name(n)} = 'log' is not allowed: {n} "
                 f"starts at {v:g} (log needs a value > 0)"
             )
-        lo, hi = (b if b is not None else ((v / 100, v * 100) if t == "log" else
-                                           (-math.inf, math.inf)))
+        lo, hi = (
+            b
+            if b is not None
+            else ((v / 100, v * 100) if t == "log" else (-math.inf, math.inf))
+        )
         if t == "log" and lo <= 0:
             raise ParameterError(
                 f"gains.bounds.{_base_name(n)} = [{lo:g}, {hi:g}] is not allowed: a "
@@ -262,10 +260,12 @@ def check_power_flows(case, cfg: dict) -> None:
 
     lo, hi = cfg["scenarios"]["load_factor"]
     checks = [("scenarios.load_factor", lf) for lf in (lo, hi)]
-    checks += [("loss.damping_load_factors", lf)
-               for lf in cfg["loss"]["damping_load_factors"]]
-    checks += [("validation.load_factors", lf)
-               for lf in cfg["validation"]["load_factors"]]
+    checks += [
+        ("loss.damping_load_factors", lf) for lf in cfg["loss"]["damping_load_factors"]
+    ]
+    checks += [
+        ("validation.load_factors", lf) for lf in cfg["validation"]["load_factors"]
+    ]
     checks.append(("report.load_factor", cfg["report"]["load_factor"]))
     seen = set()
     for key, lf in checks:

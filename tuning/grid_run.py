@@ -108,9 +108,7 @@ def _validation_fn(problem):
         after = (tr.ts >= t0)[:, None]
         err = jnp.where(mask, jnp.abs(coi_speeds(case, tr.omega)), 0.0) * after
         s_w = _settling_time(tr.ts, jnp.nan_to_num(err, nan=jnp.inf), band_speed, t0)
-        return dataclasses.replace(
-            m, settling_speed=jnp.where(m.stable, s_w, jnp.inf)
-        )
+        return dataclasses.replace(m, settling_speed=jnp.where(m.stable, s_w, jnp.inf))
 
     lc = problem.cfg["loss"]
     t_end = problem.cfg["validation"]["t_end"]
@@ -257,7 +255,11 @@ def run_grid(
             "seconds": time.perf_counter() - t0,
         }
         state = dataclasses.replace(
-            state, step=k + 1, raw=raw, opt_state=opt_state, history=[*state.history, row]
+            state,
+            step=k + 1,
+            raw=raw,
+            opt_state=opt_state,
+            history=[*state.history, row],
         )
         if not quiet:
             print(
@@ -300,12 +302,13 @@ def _reference_runs(problem, raws: dict):
     r = problem.cfg["report"]
     bus, events = reference_fault(problem.case, r, problem.dist)
     lf = float(r["load_factor"])
+    opts = problem.options(r["t_end"])
+    sim = jax.jit(lambda c, o: simulate_case(c, o, events, **opts))
     out = {}
     for label, raw in raws.items():
         case = problem.case_at(raw)
         op, _ = operating_point(case, load_factor=lf, gen_factor=lf)
-        opts = problem.options(r["t_end"])
-        out[label] = jax.jit(lambda c, o: simulate_case(c, o, events, **opts))(case, op)
+        out[label] = sim(case, op)
     return bus, out
 
 

@@ -6,9 +6,8 @@ e.g. drawn per scenario; check `pf.converged`)."""
 
 from __future__ import annotations
 
-import numpy as np
-
 import equinox as eqx
+import numpy as np
 
 from .loop import Case, Operating, initialize
 from .powerflow import (
