@@ -458,9 +458,9 @@ def _report(cfg, problem, state, start_raw, modes_before, modes_after, phys, wal
         "",
         "## Targets (issue 30)",
         "",
-        f"- inter-area damping >= 0.15 at every validation load factor: "
+        f"- inter-area damping >= {target} at every validation load factor: "
         f"{_fmt(vb['worst_inter_area_damping'], '.4f')} "
-        f"({'met' if vb['worst_inter_area_damping'] >= 0.15 else 'NOT met'}); "
+        f"({'met' if vb['worst_inter_area_damping'] >= target else 'NOT met'}); "
         f"every electromechanical mode >= {target}: "
         f"{'met' if vb['worst_damping'] >= target else 'NOT met'} "
         f"({_fmt(vb['worst_damping'], '.4f')}); every oscillatory mode of 0.05-5 Hz "
