@@ -197,10 +197,20 @@ def _compiled(cfg, build_grid, make_step):
     key = json.dumps({k: v for k, v in cfg.items() if k != "steps"}, sort_keys=True)
     if key not in _CACHE:
         problem = build_grid(cfg)
-        step_fn, _ = make_step(problem)
+        step_fn, grad_fn = make_step(problem)
         _CACHE.clear()
-        _CACHE[key] = (problem, step_fn, _validation_fn(problem))
-    return _CACHE[key]
+        _CACHE[key] = (problem, step_fn, _validation_fn(problem), grad_fn)
+    return _CACHE[key][:3]
+
+
+def compiled_grad(cfg):
+    """(problem, value_and_grad of the loss) of a config, from the same cache as the
+    runs: grad(raw, events, lfs, refs) -> ((loss, info), gradient)."""
+    from .grid_problem import build_grid, make_step
+
+    _compiled(cfg, build_grid, make_step)
+    key = json.dumps({k: v for k, v in cfg.items() if k != "steps"}, sort_keys=True)
+    return _CACHE[key][0], _CACHE[key][3]
 
 
 def run_grid(
