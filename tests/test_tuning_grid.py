@@ -276,3 +276,15 @@ def test_scaled_operating_point_is_an_equilibrium(factor):
     op_t, _ = jax.jit(lambda f: operating_point_traced(case, f, f))(factor)
     assert np.max(np.abs(np.asarray(op_t.y0) - np.asarray(op.y0))) < 1e-9
     check_equilibrium(case, op_t, tol=1e-8)
+
+
+def test_smib_only_flags_are_refused_with_a_case(tmp_path, capsys):
+    """--init/--controller are the SMIB tuner's: with a [case] config, one line,
+    exit 2, nothing written."""
+    cfg = _config(tmp_path)
+    out = tmp_path / "out"
+    rc = main(["--config", str(cfg), "--out", str(out), "--init", "paper"])
+    err = capsys.readouterr().err.strip()
+    assert rc == 2 and len(err.splitlines()) == 1
+    assert "--init is not allowed with a [case] config" in err
+    assert not out.exists()
