@@ -5,6 +5,9 @@ fault scenarios; checkpoints, resume, report.
         [--batch B] [--seed S] [--out DIR] [--resume] [--preset paper|realistic]
         [--controller aftsc|asc|avr-pss] [--adaptation oracle|realizable] [--quiet]
 
+A config with a `[case]` table tunes device parameters of a multi-machine case
+instead (`tuning.grid_run`, docs/tuning-grid.md).
+
 This module is the command line only: it configures the process (host devices,
 float64, equinox's error mode, the compilation cache; `smibjax.configure`) before
 JAX loads, then builds the problem (`tuning.problem`), runs the loop
@@ -105,6 +108,12 @@ def main(argv=None) -> int:
     from .resume import SessionClock, start_mode
 
     try:
+        from .grid_config import is_grid_config
+
+        if is_grid_config(args.config):  # a [case] table: a multi-machine case
+            from .grid_run import main as grid_main
+
+            return grid_main(args)
         cfg = resolve_config(args)
         if args.resume and not args.out:
             raise UsageError("--resume needs --out DIR (the run to continue)")

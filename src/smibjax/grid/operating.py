@@ -6,6 +6,7 @@ e.g. drawn per scenario; check `pf.converged`)."""
 
 from __future__ import annotations
 
+import equinox as eqx
 import numpy as np
 
 from .loop import Case, Operating, initialize
@@ -28,8 +29,15 @@ def operating_point(
     if load_factor != 1.0 or gen_factor != 1.0:
         system = scale_operating_point(system, load_factor, gen_factor)
     pf = solve_power_flow(system)
-    op = initialize(case, pf.vm, pf.va, pf.p_gen, pf.q_gen)
+    op = initialize(_with_system(case, system), pf.vm, pf.va, pf.p_gen, pf.q_gen)
     return op, pf
+
+
+def _with_system(case: Case, system) -> Case:
+    """`case` with its loads and schedules scaled (`system`): the loads become
+    constant impedances from the scaled P + jQ, so that the state at rest is an
+    equilibrium of the scaled network (with the raw file's loads it is not)."""
+    return eqx.tree_at(lambda c: c.system, case, system)
 
 
 def operating_point_traced(case: Case, load_factor=1.0, gen_factor=1.0):
@@ -37,7 +45,7 @@ def operating_point_traced(case: Case, load_factor=1.0, gen_factor=1.0):
     factors; differentiable through the power flow (implicit function theorem)."""
     system = scale_operating_point(case.system, load_factor, gen_factor)
     pf = power_flow(system)
-    op = initialize(case, pf.vm, pf.va, pf.p_gen, pf.q_gen)
+    op = initialize(_with_system(case, system), pf.vm, pf.va, pf.p_gen, pf.q_gen)
     return op, pf
 
 

@@ -1,0 +1,290 @@
+"""The coordinated tuner on a multi-machine case (`python -m tuning.optimize` with a
+`[case]` table; tuning/grid_*.py).
+
+One tiny case keeps the tests cheap: the paper's SMIB network (smib.raw) with its
+machine given an SEXS exciter and an IEEEST stabilizer and no mechanical damping
+(tests/data/grid_tuning/smib_pss.dyr, 15 states), 2 s horizons, batches of 2. The
+runs share one compiled program (`grid_run._compiled`, keyed by the config)."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from tuning.grid_config import check_grid_config, load_grid_config
+from tuning.optimize import main
+
+ROOT = Path(__file__).resolve().parent.parent
+RAW = ROOT / "src/smibjax/grid/cases/smib.raw"
+DYR = ROOT / "tests/data/grid_tuning/smib_pss.dyr"
+
+TINY = f"""
+steps = 2
+batch = 2
+seed = 3
+
+[case]
+raw = "{RAW.as_posix()}"
+dyr = "{DYR.as_posix()}"
+
+[gains]
+names = ["IEEEST.KS", "IEEEST.T1", "IEEEST.T3"]
+
+[gains.bounds]
+"IEEEST.KS" = [0.5, 50.0]
+
+[scenarios]
+kind = "bus"
+buses = [2]
+t_fault = [0.2, 0.2]
+clear_after = [0.05, 0.08]
+load_factor = [0.9, 1.1]
+
+[train]
+t_end = 2.0
+dt_save = 0.02
+rtol = 1e-9
+atol = 1e-11
+
+[loss]
+target_damping = 0.3
+damping_load_factors = [0.9, 1.1]
+
+[optimizer]
+learning_rate = 0.1
+
+[validation]
+n = 3
+every = 1
+t_end = 2.0
+load_factors = [1.0]
+
+[report]
+fault_bus = 2
+t_end = 2.0
+"""
+
+
+def _config(tmp_path, text=TINY, name="tiny.toml") -> Path:
+    p = tmp_path / name
+    p.write_text(text, encoding="utf-8")
+    return p
+
+
+@pytest.fixture(scope="module")
+def tiny_run(tmp_path_factory):
+    tmp = tmp_path_factory.mktemp("grid_tune")
+    cfg = _config(tmp)
+    out = tmp / "run"
+    rc = main(["--config", str(cfg), "--out", str(out), "--quiet"])
+    return rc, out, cfg
+
+
+def test_tiny_run_writes_its_files(tiny_run):
+    """End to end: exit 0; gains.json is a flat table of device parameters by name
+    whose values, set on the case, give the modes the summary reports; the report
+    has the modes before and after, the physics and the plot."""
+    rc, out, _ = tiny_run
+    assert rc == 0
+    for f in (
+        "gains.json",
+        "report.md",
+        "summary.json",
+        "history.csv",
+        "trajectories.png",
+        "config.json",
+        "checkpoint.eqx",
+        "checkpoint.json",
+    ):
+        assert (out / f).is_file(), f
+    gains = json.loads((out / "gains.json").read_text())
+    assert set(gains) == {"IEEEST[1:1].KS", "IEEEST[1:1].T1", "IEEEST[1:1].T3"}
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["steps"] == 2
+    assert summary["start"]["stable_fraction"] == 1.0
+    # the start is the dyr file's KS = 5 (log transform: exp(log 5))
+    assert summary["modes_before"][0]["modes"]
+    from smibjax.grid.case import load_case
+    from smibjax.grid.modes import linearize, modes
+    from smibjax.grid.operating import operating_point
+    from smibjax.grid.params import set_params
+
+    case = set_params(load_case(RAW, DYR), gains)
+    op, _ = operating_point(case, 1.0, 1.0)
+    em = [
+        m
+        for m in modes(case, linearize(case, op, inputs=(), outputs=()))
+        if m.kind == "electromechanical"
+    ]
+    after = summary["modes_after"][0]["modes"]
+    assert len(em) == len(after) == 1
+    assert em[0].damping == pytest.approx(after[0]["damping"], abs=1e-9)
+    assert summary["tuned"]["worst_damping"] == pytest.approx(em[0].damping, abs=1e-9)
+    assert summary["modes_before"][0]["modes"][0]["damping"] == pytest.approx(
+        0.0812042, abs=1e-6
+    )  # KS = 5 of the dyr file (`smibjax modes` on it: 8.120%)
+    side = json.loads((out / "checkpoint.json").read_text())
+    assert [v["step"] for v in side["validation"]] == [0, 1, 2]
+    best = side["validation"][side["best_step"]]
+    for key in ("stable_fraction", "worst_damping", "settling_angle_mean"):
+        assert summary["tuned"][key] == best[key]
+    report = (out / "report.md").read_text()
+    assert "Electromechanical modes before and after" in report
+    assert "Efd peak" in report and "IEEEST[1:1].KS" in report
+    rows = (out / "history.csv").read_text().strip().splitlines()
+    assert len(rows) == 3  # header + 2 steps
+
+
+def test_gradient_matches_central_differences(tmp_path):
+    """d loss / d log KS (the stabilizer gain, through the power flows, the adaptive
+    solver of both scenarios and the eigenvalues) against central differences; the
+    damping term is active (target 0.3 > zeta 0.08) and contributes. (The loss and
+    gradient are the runs' own compiled program.)"""
+    from tuning.grid_problem import reference
+    from tuning.grid_run import compiled_grad
+
+    cfg = load_grid_config(_config(tmp_path))
+    check_grid_config(cfg)
+    problem, grad = compiled_grad(cfg)
+    raw0 = problem.space.to_raw(problem.space.start)
+    refs = reference(problem, raw0)
+    events, lfs = problem.batch(0)
+    name = "IEEEST[1:1].KS"
+    (_, info), g = grad(raw0, events, lfs, refs)
+    assert float(info["damping"]) > 1e-3  # the hinge is on
+    h = 1e-4
+
+    def at(dx):
+        r = dict(raw0)
+        r[name] = raw0[name] + dx
+        return float(grad(r, events, lfs, refs)[0][0])
+
+    fd = (at(h) - at(-h)) / (2 * h)
+    assert abs(float(g[name])) > 1e-3
+    assert float(g[name]) == pytest.approx(fd, rel=2e-3)
+
+
+def test_resume_equals_uninterrupted(tmp_path):
+    """A run stopped after 1 of 2 steps and resumed from its checkpoint ends with the
+    same parameters, optimizer state and history as an uninterrupted run."""
+    from tuning.grid_run import run_grid
+
+    cfg = load_grid_config(_config(tmp_path))
+    check_grid_config(cfg)
+    a, b = tmp_path / "a", tmp_path / "b"
+    a.mkdir()
+    b.mkdir()
+    _, whole = run_grid(cfg, a, quiet=True)
+    _, first = run_grid(cfg, b, quiet=True, stop_after=1)
+    assert first.step == 1
+    _, rest = run_grid(cfg, b, resume=True, quiet=True)
+    assert rest.step == whole.step == 2
+    for k in whole.raw:
+        assert float(rest.raw[k]) == float(whole.raw[k])
+    la = jax.tree_util.tree_leaves(whole.opt_state)
+    lb = jax.tree_util.tree_leaves(rest.opt_state)
+    assert all(np.array_equal(x, y) for x, y in zip(la, lb, strict=True))
+    assert [r["loss"] for r in rest.history] == [r["loss"] for r in whole.history]
+    assert rest.best.step == whole.best.step
+
+
+BAD = [
+    (
+        ('names = ["IEEEST.KS", "IEEEST.T1", "IEEEST.T3"]', 'names = ["IEEEST.KQ"]'),
+        "IEEEST has no parameter 'KQ'",
+    ),
+    (
+        ('names = ["IEEEST.KS", "IEEEST.T1", "IEEEST.T3"]', 'names = ["TGOV1.R"]'),
+        "the case has no TGOV1",
+    ),
+    (
+        ('"IEEEST.KS" = [0.5, 50.0]', '"IEEEST.KS" = [10.0, 50.0]'),
+        "excludes the start value IEEEST[1:1].KS = 5",
+    ),
+    (
+        ("load_factor = [0.9, 1.1]", "load_factor = [0.9, 20.0]"),
+        "power flow does not converge at load factor 20",
+    ),
+    (("buses = [2]", "buses = [2, 99]"), "bus 99 is not in the system"),
+]
+
+
+@pytest.mark.parametrize("edit,message", BAD, ids=[m for _, m in BAD])
+def test_bad_input_one_line_exit_2_nothing_written(tmp_path, capsys, edit, message):
+    """A parameter the case lacks, a bound excluding the start value, a load range
+    whose power flow fails at an end (naming the factor), a fault on a bus that does
+    not exist: one line, exit 2, no output folder."""
+    old, new = edit
+    assert old in TINY
+    cfg = _config(tmp_path, TINY.replace(old, new))
+    out = tmp_path / "out"
+    rc = main(["--config", str(cfg), "--out", str(out), "--quiet"])
+    err = capsys.readouterr().err.strip()
+    assert rc == 2
+    assert len(err.splitlines()) == 1 and "Traceback" not in err
+    assert message in err
+    assert not out.exists()
+
+
+def test_space_transforms_and_ties():
+    """log raw values round-trip; projection clips into the bounds; a tie copies
+    the leader's per-device value."""
+    from smibjax.grid.case import load_case
+    from tuning.grid_problem import make_space
+
+    case = load_case("kundur")
+    space = make_space(
+        case,
+        {
+            "names": ["IEEEST.KS", "IEEEST.T6"],
+            "per_device": True,
+            "bounds": {"IEEEST.KS": [1.0, 40.0]},
+            "transform": {},
+            "tie": {"IEEEST.T5": "IEEEST.T6"},
+        },
+    )
+    assert len(space.names) == 8 and space.names[0] == "IEEEST[1:1].KS"
+    raw = space.to_raw(space.start)
+    assert float(raw["IEEEST[1:1].KS"]) == pytest.approx(math.log(20.0))
+    raw = {**raw, "IEEEST[2:1].KS": jnp.asarray(10.0), "IEEEST[3:1].T6": jnp.log(7.0)}
+    raw = space.project(raw)
+    vals = space.values(raw)
+    assert float(vals["IEEEST[2:1].KS"]) == pytest.approx(40.0)
+    assert float(vals["IEEEST[3:1].T5"]) == pytest.approx(7.0)
+    assert float(vals["IEEEST[1:1].T5"]) == pytest.approx(10.0)
+
+
+@pytest.mark.parametrize("factor", [0.8, 1.2])
+def test_scaled_operating_point_is_an_equilibrium(factor):
+    """Loads and generation scaled by a factor: every state derivative at rest is
+    below 1e-8 (the loads' constant impedances come from the scaled P + jQ; with the
+    raw file's they were not, and dEfd/dt was ~700/s at 0.8), concretely and traced."""
+    from smibjax.grid.case import load_case
+    from smibjax.grid.modes import check_equilibrium
+    from smibjax.grid.operating import operating_point, operating_point_traced
+    from smibjax.grid.params import set_params
+
+    case = set_params(load_case("kundur"), {"TGOV1.VMAX": 1.1})
+    op, _ = operating_point(case, factor, factor)
+    check_equilibrium(case, op, tol=1e-8)
+    op_t, _ = jax.jit(lambda f: operating_point_traced(case, f, f))(factor)
+    assert np.max(np.abs(np.asarray(op_t.y0) - np.asarray(op.y0))) < 1e-9
+    check_equilibrium(case, op_t, tol=1e-8)
+
+
+def test_smib_only_flags_are_refused_with_a_case(tmp_path, capsys):
+    """--init/--controller are the SMIB tuner's: with a [case] config, one line,
+    exit 2, nothing written."""
+    cfg = _config(tmp_path)
+    out = tmp_path / "out"
+    rc = main(["--config", str(cfg), "--out", str(out), "--init", "paper"])
+    err = capsys.readouterr().err.strip()
+    assert rc == 2 and len(err.splitlines()) == 1
+    assert "--init is not allowed with a [case] config" in err
+    assert not out.exists()
