@@ -14,6 +14,7 @@ from .options import (
     build_from_args,
     controller_of,
     positive,
+    solver_options,
 )
 from .plotting import plot_cct
 
@@ -136,9 +137,7 @@ def run_grouped(args, sets, plant, op, init, progress=None) -> dict:
             criterion=getattr(args, "criterion", "settled"),
             adaptation=args.adaptation,
             t_end=args.t_end,
-            max_steps=args.max_steps,
-            rtol=args.rtol,
-            atol=args.atol,
+            solver=solver_options(args),
             progress=progress() if progress else None,
         ).to_dict()
         for g in groups.values()

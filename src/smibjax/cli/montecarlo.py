@@ -20,6 +20,7 @@ from .options import (
     parameter_values,
     positive,
     read_dist,
+    solver_options,
 )
 from .runs import run_montecarlo
 
@@ -82,9 +83,7 @@ def spec_from_args(args, params, plant, op, init, dist) -> MonteCarloSpec:
         controller=args.controller or "",
         options=dict(getattr(getattr(args, "context", None), "options", {}) or {}),
         t_end=args.t_end,
-        rtol=args.rtol,
-        atol=args.atol,
-        max_steps=args.max_steps,
+        solver=solver_options(args),
     )
 
 
