@@ -25,8 +25,14 @@ CONTROLLERS = ("aftsc", "asc")
 ALPHA = {"aftsc": "5/7", "asc": "1"}
 # Tight-tolerance reference of the accuracy checks (adaptive Tsit5, same model).
 REF_RTOL, REF_ATOL, REF_MAX_STEPS = 1e-10, 1e-12, 400_000
+REFERENCE = sj.SolverOptions(rtol=REF_RTOL, atol=REF_ATOL, max_steps=REF_MAX_STEPS)
 # The solver tolerances of the timed runs: simulate's defaults unless --rtol/--atol.
 RTOL, ATOL = 1e-6, 1e-8
+
+
+def solver_of(args) -> sj.SolverOptions:
+    """The solver options of the timed runs: the adaptive solver at --rtol, --atol."""
+    return sj.SolverOptions(rtol=args.rtol, atol=args.atol)
 
 
 def add_tolerance_args(ap) -> None:
@@ -95,12 +101,12 @@ def host_devices(k: int) -> list:
     return devs[:k]
 
 
-def batched_metrics(t_end: float, rtol: float = RTOL, atol: float = ATOL):
+def batched_metrics(t_end: float, solver: sj.SolverOptions | None = None):
     """The batch engine (`smibjax._batch.Engine`, the one every batched caller uses)
     as (gains, faults, devices) -> (stable, settling time of delta (s), accepted
-    steps), adaptive solver at (rtol, atol); alpha = 1 (ASC) is compiled in by the
-    engine."""
-    engine = Engine(t_end=t_end, rtol=rtol, atol=atol)
+    steps), with `solver` (default: simulate's); alpha = 1 (ASC) is compiled in by
+    the engine."""
+    engine = Engine(t_end=t_end, solver=solver or sj.SolverOptions())
 
     def fn(g, faults, devices=None):
         out = engine.run(g, Scenarios(faults), devices=devices)
@@ -127,18 +133,13 @@ def deltas(
     faults: sj.Fault,
     n: int,
     t_end: float,
-    tight: bool,
-    rtol: float = RTOL,
-    atol: float = ATOL,
+    solver: sj.SolverOptions,
 ):
     """(delta (n, samples), lost_sync (n,)) of the first n scenarios, one unbatched
-    run each: at (rtol, atol), or the tight reference (rtol 1e-10, atol 1e-12)."""
-    kw = (
-        {"rtol": REF_RTOL, "atol": REF_ATOL, "max_steps": REF_MAX_STEPS}
-        if tight
-        else {"rtol": rtol, "atol": atol}
-    )
-    runs = [sj.simulate(g, row(faults, i), t_end=t_end, **kw) for i in range(n)]
+    run each with `solver` (`REFERENCE`: the tight reference, rtol 1e-10, atol
+    1e-12)."""
+    save = sj.SaveOptions(t_end=t_end)
+    runs = [sj.simulate(g, row(faults, i), solver=solver, save=save) for i in range(n)]
     return (
         np.stack([np.asarray(tr.delta) for tr in runs]),
         np.array([bool(tr.lost_sync) for tr in runs]),

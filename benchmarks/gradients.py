@@ -117,7 +117,7 @@ def problem(args):
         "gains": values,
         "trainable": list(space.trainable),
         "train_t_end_s": setup.train_t_end,
-        "train_dt_s": setup.train_dt,
+        "train_dt_s": setup.train_solver.dt,
         "solver": "fixed-step Tsit5 (tuning.train.train_run)",
         "adaptation": setup.adaptation,
         "input_smoothing": setup.input_smoothing,

@@ -22,7 +22,7 @@ import time
 from pathlib import Path
 
 import jax
-from _common import add_tolerance_args, result_name
+from _common import add_tolerance_args, result_name, solver_of
 from _results import write_results
 
 import smibjax as sj
@@ -47,8 +47,7 @@ def main() -> None:
         chunk=min(args.chunk, args.n),
         gains={k: float(getattr(g, k)) for k in sj.GAIN_NAMES},
         t_end=args.t_end,
-        rtol=args.rtol,
-        atol=args.atol,
+        solver=solver_of(args),
     )
     # compile once outside the timed run (a fresh process pays this once: reported)
     t0 = time.perf_counter()

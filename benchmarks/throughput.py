@@ -45,6 +45,7 @@ from _common import (
     ALPHA,
     CONTROLLERS,
     DEFAULT_OUT,
+    REFERENCE,
     add_tolerance_args,
     batched_metrics,
     deltas,
@@ -53,6 +54,7 @@ from _common import (
     host_devices,
     montecarlo_faults,
     result_name,
+    solver_of,
     status,
     take,
     timed,
@@ -104,12 +106,11 @@ def main(argv=None) -> None:
     rows, accuracy = [], {}
     for ctrl in args.controllers:
         g = gains(ctrl)
-        fn = batched_metrics(args.t_end, args.rtol, args.atol)
+        fn = batched_metrics(args.t_end, solver_of(args))
         if args.n_check > 0:
-            tol = {"rtol": args.rtol, "atol": args.atol}
             err = np.abs(
-                deltas(g, pool, args.n_check, args.t_end, tight=False, **tol)[0]
-                - deltas(g, pool, args.n_check, args.t_end, tight=True)[0]
+                deltas(g, pool, args.n_check, args.t_end, solver_of(args))[0]
+                - deltas(g, pool, args.n_check, args.t_end, REFERENCE)[0]
             )
             accuracy[ctrl] = {
                 "n": args.n_check,

@@ -51,6 +51,7 @@ from _common import (
     DEFAULT_OUT,
     REF_ATOL,
     REF_RTOL,
+    REFERENCE,
     add_tolerance_args,
     batched_metrics,
     deltas,
@@ -60,6 +61,7 @@ from _common import (
     result_name,
     row,
     scenarios,
+    solver_of,
     status,
     take,
     timed,
@@ -167,8 +169,7 @@ def main(argv=None) -> None:
     rows, agreement = {}, {}
     for ctrl in args.controllers:
         g = gains(ctrl)
-        tol = (args.rtol, args.atol)
-        fn = batched_metrics(args.t_end, *tol)
+        fn = batched_metrics(args.t_end, solver_of(args))
         gd = {n: float(getattr(g, n)) for n in sj.GAIN_NAMES}
 
         # smibjax: one batch call over the devices (best of --repeat after warm-up)
@@ -194,9 +195,9 @@ def main(argv=None) -> None:
 
         # the shared scenarios: smibjax per scenario, and the tight reference
         n = args.n_scipy
-        d_jax, lost = deltas(g, pool, n, args.t_end, False, *tol)
+        d_jax, lost = deltas(g, pool, n, args.t_end, solver_of(args))
         if args.reference == "smibjax":
-            d_ref = deltas(g, pool, n, args.t_end, tight=True)[0]
+            d_ref = deltas(g, pool, n, args.t_end, REFERENCE)[0]
         else:
             d_ref = np.stack(
                 [
@@ -225,7 +226,9 @@ def main(argv=None) -> None:
             for i in range(n):
                 fl = fault_dict(row(pool, i))
                 t0 = time.perf_counter()
-                d, ok = scipy_scenario(gd, plant, fl, method, args.t_end, tol)
+                d, ok = scipy_scenario(
+                    gd, plant, fl, method, args.t_end, (args.rtol, args.atol)
+                )
                 t_total += time.perf_counter() - t0
                 ds.append(d)
                 oks.append(ok)

@@ -30,6 +30,9 @@ def cli_env() -> dict:
     return {
         **os.environ,
         "SMIBJAX_CACHE_DIR": CACHE,
+        "SMIBJAX_CACHE_MIN_COMPILE_S": os.environ.get(
+            "SMIBJAX_CACHE_MIN_COMPILE_S", "0"
+        ),
         "XLA_FLAGS": "--xla_force_host_platform_device_count=1",
     }
 

@@ -14,7 +14,9 @@ from smibjax.controllers import EstimateBox, Synergetic, make_controller
 T_END = 2.0
 # tight tolerances: batched and single runs are different programs (other rounding,
 # constants folded), and the saturating loop amplifies rounding at loose ones
-TOL = dict(rtol=1e-10, atol=1e-12)
+TIGHT = sj.SolverOptions(rtol=1e-10, atol=1e-12)
+TOL = dict(solver=TIGHT)
+SAVE = sj.SaveOptions(t_end=T_END)
 
 
 def faults(n=3):
@@ -38,7 +40,7 @@ def one_by_one(ctrl, f, plant, d=None):
     out = []
     for i in range(jax.tree_util.tree_leaves(f)[0].shape[0]):
         p = plant if d is None else sj.Plant(**{**_fields(plant), "D": float(d[i])})
-        tr = sj.simulate(ctrl, row(f, i), p, t_end=T_END, **TOL)
+        tr = sj.simulate(ctrl, row(f, i), p, solver=TIGHT, save=SAVE)
         out.append((sj.metrics(tr), int(tr.num_steps), bool(tr.lost_sync)))
     return out
 
@@ -129,9 +131,27 @@ def test_other_controllers_and_the_synchronism_flag():
 
 
 def test_bad_engine_settings_are_one_clear_error():
-    with pytest.raises(sj.ParameterError, match="rtol = 0 is not allowed"):
-        Engine(rtol=0.0)
-    with pytest.raises(sj.ParameterError, match="max_steps = 0 is not allowed"):
+    with pytest.raises(sj.ParameterError, match="t_end = 0 is not allowed"):
+        Engine(t_end=0.0)
+    with pytest.raises(sj.ParameterError, match="solver = 1e-06 is not allowed"):
+        Engine(solver=1e-6)
+    with (
+        pytest.warns(DeprecationWarning),
+        pytest.raises(sj.ParameterError, match="max_steps = 0 is not allowed"),
+    ):
         Engine(max_steps=0)
     with pytest.raises(sj.ParameterError, match="must be a controller"):
         Engine(t_end=T_END, **TOL).run("aftsc", Scenarios(faults(2)))
+
+
+def test_the_old_engine_keywords_are_a_deprecated_shim_for_the_solver_options():
+    """Engine(rtol=, atol=, max_steps=) of 0.1 builds the same `SolverOptions` (and
+    so the same compiled program) as solver=, with a DeprecationWarning; both at
+    once is refused."""
+    with pytest.warns(DeprecationWarning, match=r"Engine\(atol=, rtol=\)"):
+        old = Engine(t_end=T_END, rtol=1e-10, atol=1e-12)
+    assert old.solver == TIGHT and old.key() == Engine(t_end=T_END, **TOL).key()
+    with pytest.warns(DeprecationWarning, match="max_steps="):
+        assert Engine(max_steps=7).solver == sj.SolverOptions(max_steps=7)
+    with pytest.raises(TypeError, match="not both"):
+        Engine(solver=TIGHT, rtol=1e-6)

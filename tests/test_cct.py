@@ -35,7 +35,9 @@ def direct():
 
         def one(d):
             f = sj.Fault(t_fault=0.5, t_clear=0.5 + d, t_reclose=2.0, lam=LAM)
-            tr = sj.simulate(GAINS, f, PLANT, adaptation="realizable", t_end=10.0)
+            tr = sj.simulate(
+                GAINS, f, PLANT, adaptation="realizable", save=sj.SaveOptions(10.0)
+            )
             return tr.stable, tr.lost_sync | tr.budget_exhausted
 
         run = run or jax.jit(jax.vmap(one))

@@ -121,8 +121,28 @@ def test_a_command_run_in_process_keeps_the_suites_cache_and_devices(capsys):
     assert main(["simulate", "--t-end", "x"]) == 2
     capsys.readouterr()
     assert jax.config.jax_compilation_cache_dir == CACHE
+    # every program is cached, also eager code's one-operation ones (conftest)
+    assert jax.config.jax_persistent_cache_min_compile_time_secs == 0.0
     assert "--xla_force_host_platform_device_count=1" in os.environ["XLA_FLAGS"]
     assert "multi_thread_eigen" not in os.environ["XLA_FLAGS"]
+
+
+@pytest.mark.parametrize("value", ["x", "-1", "nan", "inf"])
+def test_a_bad_cache_threshold_in_the_environment_is_one_line(value, capsys):
+    import jax
+
+    saved = os.environ["SMIBJAX_CACHE_MIN_COMPILE_S"]
+    os.environ["SMIBJAX_CACHE_MIN_COMPILE_S"] = value
+    try:
+        assert main(["simulate", "--t-end", "1"]) == 2
+    finally:
+        os.environ["SMIBJAX_CACHE_MIN_COMPILE_S"] = saved
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith("smibjax: error:")
+    assert f"SMIBJAX_CACHE_MIN_COMPILE_S = {value!r} is not allowed" in err
+    main(["simulate", "--t-end", "x"])  # the suite's setting back in this process
+    capsys.readouterr()
+    assert jax.config.jax_persistent_cache_min_compile_time_secs == 0.0
 
 
 def test_bad_gains_files(tmp_path, capsys):

@@ -242,10 +242,18 @@ def test_cct_solver_tolerances_reach_the_runs(monkeypatch):
     monkeypatch.setattr(cct_module, "simulate", fake_simulate)
     with pytest.raises(Traced):
         critical_clearing_times(
+            {"a": sj.Gains()},
+            fault_locations=[0.5],
+            solver=sj.SolverOptions(rtol=2e-6, atol=3e-7, max_steps=999),
+        )
+    solver = seen["solver"]  # the SolverOptions given, passed whole
+    assert solver == sj.SolverOptions(rtol=2e-6, atol=3e-7, max_steps=999)
+    seen.clear()
+    with pytest.raises(Traced), pytest.warns(DeprecationWarning, match="rtol="):
+        critical_clearing_times(  # the keywords of 0.1: deprecated, same options
             {"a": sj.Gains()}, fault_locations=[0.5], rtol=2e-6, atol=3e-7
         )
-    solver = seen["solver"]  # a SolverOptions, passed whole
-    assert solver.rtol == 2e-6 and solver.atol == 3e-7 and solver.kind == "adaptive"
+    assert seen["solver"] == sj.SolverOptions(rtol=2e-6, atol=3e-7)
 
 
 @pytest.mark.parametrize(
@@ -334,7 +342,9 @@ def test_runs_that_spend_the_step_budget_are_counted_apart(tmp_path, capsys):
     assert main([*args, "300", *stable, "--out", str(out)]) == 0
     assert "raise --max-steps" in capsys.readouterr().err
     spec = json.loads((out / "run.json").read_text())["spec"]
-    assert spec["atol"] == 1e-7 and spec["rtol"] == 1e-6  # --atol reaches the runs
+    solver = spec["solver"]  # --atol, --max-steps reach the runs
+    assert solver["atol"] == 1e-7 and solver["rtol"] == 1e-6
+    assert solver["max_steps"] == 300 and solver["kind"] == "adaptive"
     rows = read_rows(out / "scenarios.csv")
     assert list(rows["budget_exhausted"]) == [1, 1, 1, 1]
     assert not rows["stable"].any() and not rows["lost_sync"].any()
@@ -441,3 +451,23 @@ def test_resume_reads_a_run_written_before_a_spec_field_existed(tmp_path):
     other = MonteCarloSpec(n=4, chunk=2, t_end=3.0, options={"phi_layer": 0.01})
     with pytest.raises(sj.ParameterError, match="--resume: options = .* differs"):
         _check_resume(tmp_path, other)
+
+
+def test_a_spec_written_before_the_solver_options_reads_and_resumes_as_one(tmp_path):
+    """A run.json of 0.1 held rtol, atol, max_steps at the top level: it reads back
+    as the same spec with a solver table, and resumes only with those values."""
+    import json
+
+    from smibjax.cli.runs import _check_resume
+
+    s = MonteCarloSpec(n=4, chunk=2, t_end=3.0, solver=sj.SolverOptions(atol=1e-7))
+    old = s.to_dict()
+    solver = old.pop("solver")
+    old.update(rtol=solver["rtol"], atol=solver["atol"], max_steps=solver["max_steps"])
+    assert MonteCarloSpec.from_dict(old) == s == MonteCarloSpec.from_dict(s.to_dict())
+    (tmp_path / "run.json").write_text(json.dumps({"spec": old}))
+    assert _check_resume(tmp_path, s)["spec"] == old
+    with pytest.raises(sj.ParameterError, match="solver.atol = 1e-08 differs"):
+        _check_resume(tmp_path, MonteCarloSpec(n=4, chunk=2, t_end=3.0))
+    with pytest.warns(DeprecationWarning, match="MonteCarloSpec"):
+        assert MonteCarloSpec(n=4, chunk=2, t_end=3.0, atol=1e-7) == s

@@ -95,6 +95,22 @@ def continuation_scale(cfg, step: int) -> float:
     return start ** (1.0 - step / n)
 
 
+def train_solver(train: dict) -> sj.SolverOptions:
+    """The solver options of the training runs, from the config's [train] table:
+    fixed (Tsit5 on a grid of `dt` s) or adaptive (`rtol`, `atol`, `max_steps`);
+    `checkpoints` (0: the solver's default) either way."""
+    checkpoints = int(train["checkpoints"]) or None
+    if str(train["solver"]) == "adaptive":
+        return sj.SolverOptions(
+            "adaptive",
+            rtol=float(train["rtol"]),
+            atol=float(train["atol"]),
+            max_steps=int(train["max_steps"]),
+            checkpoints=checkpoints,
+        )
+    return sj.SolverOptions("fixed", dt=float(train["dt"]), checkpoints=checkpoints)
+
+
 def build(cfg) -> Problem:
     init = initial_gains(cfg)
     controller_cls = CONTROLLERS[cfg["controller"]]
@@ -126,19 +142,14 @@ def build(cfg) -> Problem:
         weights=weights,
         adaptation=cfg.get("adaptation", "oracle"),  # (avr-pss: none)
         train_t_end=float(t["t_end"]),
-        train_dt=float(t["dt"]),
+        train_solver=train_solver(t),
         input_smoothing=float(t["input_smoothing"]),
         tail_weight=float(lw["tail_weight"]),
         cvar_q=float(lw["cvar_q"]),
         val_t_end=float(cfg["validation"]["t_end"]),
-        train_checkpoints=int(t["checkpoints"]) or None,
         controller=cfg["controller"],
         projection=box,
         phi_layer=float(cfg.get("options", {}).get("phi_layer", 0.0)),
-        train_solver=str(t["solver"]),
-        train_rtol=float(t["rtol"]),
-        train_atol=float(t["atol"]),
-        train_max_steps=int(t["max_steps"]),
     )
     # D = [] in a config: the plant's own damping (not drawn)
     dist = ScenarioDistribution.from_dict(

@@ -160,13 +160,14 @@ def _d_range(cfg) -> str:
 
 
 def _train_solver(setup) -> str:
-    if setup.train_solver == "adaptive":
+    solver = setup.train_solver
+    if solver.kind == "adaptive":
         return (
-            f"Tsit5 with adaptive steps (rtol {setup.train_rtol:g}, atol "
-            f"{setup.train_atol:g}), step lengths held fixed in the reverse pass"
+            f"Tsit5 with adaptive steps (rtol {solver.rtol:g}, atol "
+            f"{solver.atol:g}), step lengths held fixed in the reverse pass"
         )
     return (
-        f"Tsit5 on a fixed grid dt = {setup.train_dt:g} s (stopping exactly at "
+        f"Tsit5 on a fixed grid dt = {solver.dt:g} s (stopping exactly at "
         "every switch time)"
     )
 

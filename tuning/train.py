@@ -41,8 +41,9 @@ class Setup:
 
     `controller`: a registry name (`smibjax.controllers.CONTROLLERS`); for the paper's
     law `adaptation`, `projection` and `phi_layer` are its options. `train_solver`:
-    "fixed" (Tsit5 on a grid of `train_dt`) or "adaptive" (Tsit5 with `train_rtol`,
-    `train_atol`, step lengths held fixed in the reverse pass); see
+    the `SolverOptions` of the differentiated training runs, passed whole to
+    `simulate`: fixed (Tsit5 on a grid of `dt`) or adaptive (Tsit5 with `rtol`,
+    `atol`, step lengths held fixed in the reverse pass); see
     benchmarks/README.md, "Gradients through the saturated loop".
     """
 
@@ -51,19 +52,14 @@ class Setup:
     weights: LossWeights
     adaptation: str
     train_t_end: float
-    train_dt: float
+    train_solver: sj.SolverOptions
     input_smoothing: float
     tail_weight: float
     cvar_q: float
     val_t_end: float
-    train_checkpoints: int | None = None
     controller: str = "aftsc"
     projection: EstimateBox | None = None
     phi_layer: float = 0.0
-    train_solver: str = "fixed"
-    train_rtol: float = 1e-8
-    train_atol: float = 1e-10
-    train_max_steps: int = 20_000
 
     def controller_of(self, params) -> AbstractController:
         """The controller with parameter set `params` (`space.to_gains(raw)`)."""
@@ -115,23 +111,11 @@ def train_run(s: Setup, raw, fault: sj.Fault, D=None, scale=1.0) -> sj.Trajector
     scaled by `scale`, the scenario's true damping `D` (None: the plant's)."""
     plant = s.plant if D is None else with_damping(s.plant, D)
     plant = scaled_limits(plant, scale)
-    if s.train_solver == "adaptive":
-        solver = sj.SolverOptions(
-            "adaptive",
-            rtol=s.train_rtol,
-            atol=s.train_atol,
-            max_steps=s.train_max_steps,
-            checkpoints=s.train_checkpoints,
-        )
-    else:
-        solver = sj.SolverOptions(
-            "fixed", dt=s.train_dt, checkpoints=s.train_checkpoints
-        )
     return sj.simulate(
         s.controller_of(s.space.to_gains(raw)),
         fault,
         plant,
-        solver=solver,
+        solver=s.train_solver,
         save=sj.SaveOptions(t_end=s.train_t_end),
         input_smoothing=s.input_smoothing,
     )

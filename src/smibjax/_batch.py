@@ -33,11 +33,11 @@ import numpy as np
 from jaxtyping import Array, Bool, Float, Int
 
 from ._metrics import DEFAULT_BANDS, Metrics, metrics
-from ._options import SaveOptions, SolverOptions
+from ._options import SaveOptions, SolverOptions, adopt_legacy_solver
 from ._parallel import device_map
 from ._parameters import Fault, InitialEstimates, OperatingPoint, Plant
 from ._simulate import simulate
-from ._validate import ParameterError, is_concrete, require_count, require_positive
+from ._validate import ParameterError, is_concrete, require_positive
 from .controllers import AbstractController, Gains, as_controller
 
 __all__ = ["Engine", "Outcome", "Scenarios"]
@@ -89,9 +89,13 @@ class Engine:
     """Batched closed-loop runs and their exact metrics.
 
     `plant`, `op`, `init`: the constants of every run (defaults: the paper's);
-    `t_end`, `dt_save` (s): horizon and sampling; `rtol`, `atol`, `max_steps`: the
-    adaptive solver (`smibjax._simulate`); `delta_band` (rad), `Vt_band` (pu),
-    `omega_band` (rad/s): the metrics' settling bands.
+    `t_end`, `dt_save` (s): horizon and sampling; `solver`: a `SolverOptions`
+    (default: adaptive Tsit5, rtol 1e-6, atol 1e-8, 50,000 steps), passed whole to
+    `simulate`; `delta_band` (rad), `Vt_band` (pu), `omega_band` (rad/s): the
+    metrics' settling bands.
+
+    The keywords `rtol`, `atol`, `max_steps` of 0.1 still work, with a
+    `DeprecationWarning`, for one release (they build `solver`).
     """
 
     plant: Plant = dataclasses.field(default_factory=Plant)
@@ -99,17 +103,18 @@ class Engine:
     init: InitialEstimates = dataclasses.field(default_factory=InitialEstimates)
     t_end: float = 10.0
     dt_save: float = 0.01
-    rtol: float = 1e-6
-    atol: float = 1e-8
-    max_steps: int = 50_000
+    solver: SolverOptions = dataclasses.field(default_factory=SolverOptions)
     delta_band: float = DEFAULT_BANDS["delta"]
     Vt_band: float = DEFAULT_BANDS["Vt"]
     omega_band: float = DEFAULT_BANDS["omega"]
+    rtol: dataclasses.InitVar[float | None] = None  # deprecated: solver.rtol
+    atol: dataclasses.InitVar[float | None] = None  # deprecated: solver.atol
+    max_steps: dataclasses.InitVar[int | None] = None  # deprecated
 
-    def __post_init__(self):
-        for name in ("t_end", "dt_save", "rtol", "atol"):
+    def __post_init__(self, rtol, atol, max_steps):
+        adopt_legacy_solver(self, rtol, atol, max_steps)
+        for name in ("t_end", "dt_save"):
             require_positive(name, getattr(self, name))
-        require_count("max_steps", self.max_steps)
 
     def key(self) -> tuple:
         """Everything that is compiled in (hashable)."""
@@ -117,9 +122,7 @@ class Engine:
             _fingerprint((self.plant, self.op, self.init)),
             float(self.t_end),
             float(self.dt_save),
-            float(self.rtol),
-            float(self.atol),
-            int(self.max_steps),
+            self.solver,
             float(self.delta_band),
             float(self.Vt_band),
             float(self.omega_band),
@@ -217,7 +220,7 @@ def _program(
             p,
             op=op,
             init=init,
-            solver=SolverOptions(rtol=e.rtol, atol=e.atol, max_steps=e.max_steps),
+            solver=e.solver,
             save=SaveOptions(e.t_end, e.dt_save),
         )
         return Outcome(

@@ -47,6 +47,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ._batch import Engine, Scenarios
+from ._options import SolverOptions, solver_or_legacy
 from ._parameters import (
     Fault,
     InitialEstimates,
@@ -351,10 +352,11 @@ def critical_clearing_times(
     criterion: str = "settled",
     adaptation: str = "oracle",
     t_end: float = 10.0,
-    max_steps: int = 50_000,
-    rtol: float = 1e-6,
-    atol: float = 1e-8,
+    solver: SolverOptions | None = None,
     progress: Callable[[int, int], None] | None = None,
+    rtol: float | None = None,
+    atol: float | None = None,
+    max_steps: int | None = None,
 ) -> CCTResult:
     """CCT (s) of every gain set at every fault location (module docstring: scan,
     then bisection in the first unstable bracket). `progress(done, total)`, if given,
@@ -366,7 +368,9 @@ def critical_clearing_times(
     `tol` (s): bisection tolerance and shortest duration tried; `scan_step` (s): the
     scan's spacing (at most; the window is split evenly); `criterion`: "settled" or
     "synchronism"; `t_end` (s): horizon of every run, after `reclose_time`;
-    `max_steps`, `rtol`, `atol`: the adaptive solver's.
+    `solver`: a `SolverOptions` (default: adaptive Tsit5, rtol 1e-6, atol 1e-8,
+    50,000 steps), passed whole to the batch engine. The keywords `rtol`, `atol`,
+    `max_steps` of 0.1 still work, with a `DeprecationWarning`, for one release.
 
     **Returns:** a `CCTResult` (`.to_dict()`: the JSON layout).
     """
@@ -384,9 +388,9 @@ def critical_clearing_times(
         criterion,
     )
     names, template, gains, lam = _stacked_lanes(gain_sets, locs, adaptation)
-    engine = Engine(
-        plant, op, init, t_end=t_end, rtol=rtol, atol=atol, max_steps=max_steps
-    )
+    legacy = {"rtol": rtol, "atol": atol, "max_steps": max_steps}
+    solver = solver_or_legacy("critical_clearing_times", solver, legacy)
+    engine = Engine(plant, op, init, t_end=t_end, solver=solver)
     stable_at = _verdicts(
         engine,
         template,

@@ -1,8 +1,8 @@
 """Batch Monte Carlo over fault scenarios: seeded and chunked.
 
-A run is described by a `MonteCarloSpec` (plain numbers, JSON-able). Scenario i depends
-only on (seed, i) (see `sample_scenarios`), chunk k holds scenarios
-[k chunk, (k + 1) chunk), and `compute_chunk(spec, k)` is a pure function of the two
+A run is described by a `MonteCarloSpec` (plain numbers and the solver's options,
+JSON-able). Scenario i depends only on (seed, i) (see `sample_scenarios`), chunk k
+holds scenarios [k chunk, (k + 1) chunk), and `compute_chunk(spec, k)` is a pure function of the two
 (through the batch engine, `smibjax._batch`): chunks can run in any order, in any
 process, and be retried. `summarize` reduces the rows. Run folders (chunk files,
 resume, CSV and markdown) are the command line's: `smibjax.cli.runs`.
@@ -21,6 +21,7 @@ import numpy as np
 
 from ._batch import Engine, Outcome, Scenarios
 from ._metrics import PHYSICS, physics_summary
+from ._options import SolverOptions, adopt_legacy_solver
 from ._parameters import InitialEstimates, OperatingPoint, ParameterError, Plant
 from ._scenarios import ScenarioDistribution, sample_scenarios
 from ._validate import require_count, require_positive, require_samples
@@ -89,9 +90,14 @@ class MonteCarloSpec:
     parameters, plant overrides, operating point, initial estimates); `controller`
     is a registry name (`smibjax.controllers`; "" : the paper's law, AFTSC or ASC by
     alpha) and `options` its options (the paper's law: projection, phi_layer, as in a
-    gains file); `dist` is a
-    `ScenarioDistribution.to_dict()`. The chunk size is part of the spec only because
-    chunk files are named by index; the rows do not depend on it.
+    gains file); `dist` is a `ScenarioDistribution.to_dict()`; `t_end`, `dt_save`
+    (s): horizon and sampling of every run; `solver`: a `SolverOptions`, passed whole
+    to the batch engine (in `to_dict`: a table of its fields). The chunk size is part
+    of the spec only because chunk files are named by index; the rows do not depend
+    on it.
+
+    The keywords `rtol`, `atol`, `max_steps` of 0.1 still work, with a
+    `DeprecationWarning`, for one release (they build `solver`).
     """
 
     n: int
@@ -109,19 +115,21 @@ class MonteCarloSpec:
     options: dict = dataclasses.field(default_factory=dict)
     t_end: float = 10.0
     dt_save: float = 0.01
-    rtol: float = 1e-6
-    atol: float = 1e-8
-    max_steps: int = 50_000
+    solver: SolverOptions = dataclasses.field(default_factory=SolverOptions)
+    rtol: dataclasses.InitVar[float | None] = None  # deprecated: solver.rtol
+    atol: dataclasses.InitVar[float | None] = None  # deprecated: solver.atol
+    max_steps: dataclasses.InitVar[int | None] = None  # deprecated
 
-    def __post_init__(self):
-        for name in ("n", "chunk", "max_steps"):
+    def __post_init__(self, rtol, atol, max_steps):
+        for name in ("n", "chunk"):
             require_count(name, getattr(self, name))
+        adopt_legacy_solver(self, rtol, atol, max_steps)
         if self.adaptation not in ("oracle", "realizable"):
             raise ParameterError(
                 f"adaptation = {self.adaptation!r} is not allowed: must be 'oracle' "
                 "or 'realizable'"
             )
-        for name in ("t_end", "dt_save", "rtol", "atol"):
+        for name in ("t_end", "dt_save"):
             require_positive(name, getattr(self, name))
         require_samples(self.t_end, self.dt_save)
         if (
@@ -199,8 +207,24 @@ class MonteCarloSpec:
 
         return clean(dataclasses.asdict(self))
 
+    @staticmethod
+    def upgrade(d: dict) -> dict:
+        """A spec's dict in today's layout: one written before 0.2 had the solver's
+        `rtol`, `atol`, `max_steps` at the top level; they move into its `solver`
+        table (the other solver options at their defaults, as those runs had)."""
+        d = dict(d)
+        flat = {k: d.pop(k) for k in ("rtol", "atol", "max_steps") if k in d}
+        if flat:
+            base = dataclasses.asdict(SolverOptions())
+            d["solver"] = {**base, **d.get("solver", {}), **flat}
+        return d
+
     @classmethod
     def from_dict(cls, d: dict) -> MonteCarloSpec:
+        """The inverse of `to_dict` (also reads the layout before 0.2: `upgrade`)."""
+        d = cls.upgrade(d)
+        if isinstance(d.get("solver"), dict):
+            d["solver"] = SolverOptions(**d["solver"])
         return cls(**d)
 
 
@@ -236,9 +260,7 @@ def compute_chunk(spec: MonteCarloSpec, k: int, devices=None) -> dict[str, np.nd
         init,
         t_end=spec.t_end,
         dt_save=spec.dt_save,
-        rtol=spec.rtol,
-        atol=spec.atol,
-        max_steps=spec.max_steps,
+        solver=spec.solver,
     )
     out = outcome_columns(
         engine.run(

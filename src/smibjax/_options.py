@@ -8,6 +8,7 @@ a `ParameterError` with one line naming it).
 
 from __future__ import annotations
 
+import warnings
 from typing import Literal
 
 import equinox as eqx
@@ -83,3 +84,44 @@ class SaveOptions(eqx.Module):
                 f"dt_save = {self.dt_save:g} is not allowed: must be <= t_end = "
                 f"{self.t_end:g}"
             )
+
+
+def solver_or_legacy(
+    owner: str, solver: SolverOptions | None, legacy: dict, stacklevel: int = 3
+) -> SolverOptions:
+    """The solver options of `owner` (a name, for the messages): `solver`
+    (default: `SolverOptions()`), or, from the keywords of 0.1 (`rtol`, `atol`,
+    `max_steps`; those given as None are absent), a `SolverOptions` with those
+    values and the defaults for the rest. The keywords are deprecated: a
+    `DeprecationWarning` (at `stacklevel`), for one release; both at once is a
+    `TypeError`."""
+    given = {k: v for k, v in legacy.items() if v is not None}
+    if not given:
+        if solver is None:
+            return SolverOptions()
+        if not isinstance(solver, SolverOptions):
+            raise ParameterError(
+                f"solver = {solver!r} is not allowed: must be a SolverOptions"
+            )
+        return solver
+    if solver is not None and solver != SolverOptions():
+        raise TypeError(
+            f"{owner}: give solver=SolverOptions(...) or the old keywords "
+            f"{', '.join(sorted(given))}, not both"
+        )
+    warnings.warn(
+        f"{owner}({', '.join(f'{k}=' for k in sorted(given))}) is deprecated: pass "
+        "solver=SolverOptions(...)",
+        DeprecationWarning,
+        stacklevel=stacklevel,
+    )
+    return SolverOptions(**given)
+
+
+def adopt_legacy_solver(obj, rtol, atol, max_steps) -> None:
+    """In the `__post_init__` of a frozen dataclass with a `solver` field and the
+    deprecated `rtol`, `atol`, `max_steps` init-only keywords: set `obj.solver` to
+    `solver_or_legacy` of them (the warning points at the caller's line)."""
+    legacy = {"rtol": rtol, "atol": atol, "max_steps": max_steps}
+    solver = solver_or_legacy(type(obj).__name__, obj.solver, legacy, stacklevel=5)
+    object.__setattr__(obj, "solver", solver)

@@ -45,9 +45,14 @@ def use_host_devices(minimum: int = 1) -> None:
 def enable_compilation_cache(path: str | None = None) -> str | None:
     """Turn on JAX's persistent compilation cache in `path` (default:
     $SMIBJAX_CACHE_DIR, else ~/.cache/smibjax/jax; an empty SMIBJAX_CACHE_DIR turns
-    it off). Programs that took >= 0.1 s to compile are kept (the simulator, and
-    the command line's metrics program, 0.3 s), so a new process skips XLA
-    compilation (tracing still runs). Returns the folder."""
+    it off). Programs that took at least $SMIBJAX_CACHE_MIN_COMPILE_S seconds to
+    compile (default 0.1: the simulator, and the command line's metrics program,
+    0.3 s) are kept, so a new process skips XLA compilation (tracing
+    still runs). 0 keeps every program, also the one-operation programs of code run
+    op by op outside `jit` (a power flow's set-up: about a hundred of them per case),
+    at the cost of many small files: the test suite's setting, where every worker
+    and command-line process would otherwise compile them again. Returns the
+    folder."""
     import jax
 
     if path is None:
@@ -56,8 +61,29 @@ def enable_compilation_cache(path: str | None = None) -> str | None:
         )
     if path:
         jax.config.update("jax_compilation_cache_dir", str(path))
-        jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.1)
+        jax.config.update(
+            "jax_persistent_cache_min_compile_time_secs", _min_compile_s()
+        )
     return path or None
+
+
+def _min_compile_s() -> float:
+    """$SMIBJAX_CACHE_MIN_COMPILE_S as a number of seconds >= 0 (default 0.1)."""
+    text = os.environ.get("SMIBJAX_CACHE_MIN_COMPILE_S", "").strip()
+    if not text:
+        return 0.1
+    try:
+        value = float(text)
+    except ValueError:
+        value = float("nan")
+    if not value >= 0 or value == float("inf"):
+        from ._validate import ParameterError
+
+        raise ParameterError(
+            f"SMIBJAX_CACHE_MIN_COMPILE_S = {text!r} is not allowed: must be a "
+            "number of seconds >= 0"
+        )
+    return value
 
 
 def configure(

@@ -127,11 +127,14 @@ class _RmsDynamic(eqx.Module):
 _SOLVERS = {"tsit5": dfx.Tsit5, "dopri5": dfx.Dopri5, "dopri8": dfx.Dopri8}
 
 
-def _solve_adaptive(loop, y0, ts, jumps, method, rtol, atol, max_steps, checkpoints):
-    """diffrax's adaptive loop: PID step control, exact steps onto the switch times,
-    an event on leaving the domain. Returns (samples, held state, lost_sync,
-    budget exhausted, t_stop, accepted steps, rejected steps)."""
+def _solve_adaptive(loop, y0, ts, jumps, solver: SolverOptions):
+    """diffrax's adaptive loop (`solver`'s method, tolerances, step budget and
+    checkpoints): PID step control, exact steps onto the switch times, an event on
+    leaving the domain. Returns (samples, held state, lost_sync, budget exhausted,
+    t_stop, accepted steps, rejected steps)."""
     n = ts.shape[0]
+    rtol, atol = float(solver.rtol), float(solver.atol)
+    checkpoints = solver.checkpoints
     controller = dfx.ClipStepSizeController(
         RigidSteps(
             dfx.PIDController(rtol=rtol, atol=atol, norm=_RmsDynamic(loop.n_dynamic))
@@ -141,7 +144,7 @@ def _solve_adaptive(loop, y0, ts, jumps, method, rtol, atol, max_steps, checkpoi
     event = dfx.Event(cond_fn=lambda t, y, args, **kw: ~healthy(t, y, args))
     sol = dfx.diffeqsolve(
         dfx.ODETerm(closed_loop_vector_field),
-        _SOLVERS[method](),
+        _SOLVERS[solver.method](),
         t0=0.0,
         t1=ts[-1],
         dt0=None,
@@ -150,8 +153,10 @@ def _solve_adaptive(loop, y0, ts, jumps, method, rtol, atol, max_steps, checkpoi
         saveat=dfx.SaveAt(ts=ts, t1=True),
         stepsize_controller=controller,
         event=event,
-        max_steps=max_steps,
-        adjoint=dfx.RecursiveCheckpointAdjoint(checkpoints=checkpoints),
+        max_steps=int(solver.max_steps),
+        adjoint=dfx.RecursiveCheckpointAdjoint(
+            checkpoints=None if checkpoints is None else int(checkpoints)
+        ),
         throw=False,
     )
     # SaveAt(ts, t1) stores the grid points reached, then the final state (t_end, or the
@@ -201,15 +206,9 @@ def _simulate(
     *,
     t_end: float,
     dt_save: float,
-    solver: str,
-    method: str,
-    rtol: float,
-    atol: float,
-    dt: float,
-    max_steps: int,
+    solver: SolverOptions,
     delta_band: float,
     input_smoothing: float,
-    checkpoints: int | None,
 ) -> Trajectory:
     loop = ClosedLoop(
         gains=controller,
@@ -223,7 +222,8 @@ def _simulate(
     ts_np = np.linspace(0.0, t_end, int(round(t_end / dt_save)) + 1)
     ts = jnp.asarray(ts_np)
     jumps = jnp.stack([fault.t_fault, fault.t_clear, fault.t_reclose])
-    if solver == "fixed":
+    if solver.kind == "fixed":
+        checkpoints = solver.checkpoints
         sol = solve_fixed(
             closed_loop_vector_field,
             loop,
@@ -231,10 +231,10 @@ def _simulate(
             jumps,
             healthy,
             t_end=t_end,
-            dt=dt,
+            dt=float(solver.dt),
             ts=ts_np,
-            solver=_SOLVERS[method](),
-            checkpoints=checkpoints,
+            solver=_SOLVERS[solver.method](),
+            checkpoints=None if checkpoints is None else int(checkpoints),
         )
         ys, y_hold, lost_sync = sol.samples, sol.y_hold, sol.lost_sync
         t_stop, num_steps = sol.t_stop, sol.num_steps
@@ -242,9 +242,7 @@ def _simulate(
         exhausted = jnp.zeros_like(lost_sync)
     else:
         ys, y_hold, lost_sync, exhausted, t_stop, num_steps, num_rejected = (
-            _solve_adaptive(
-                loop, y0, ts, jumps, method, rtol, atol, max_steps, checkpoints
-            )
+            _solve_adaptive(loop, y0, ts, jumps, solver)
         )
 
     def observe(t, y):
@@ -392,7 +390,6 @@ def simulate(
     require_samples(t_end, dt_save)
     if is_concrete(fault.t_fault, fault.t_clear):
         require_in_horizon(fault.t_fault, fault.t_clear, t_end)
-    checkpoints = solver.checkpoints
     return _simulate(
         controller,
         fault,
@@ -401,13 +398,7 @@ def simulate(
         init,
         t_end=float(t_end),
         dt_save=float(dt_save),
-        solver=solver.kind,
-        method=solver.method,
-        rtol=float(solver.rtol),
-        atol=float(solver.atol),
-        dt=float(solver.dt),
-        max_steps=int(solver.max_steps),
+        solver=solver,
         delta_band=float(delta_band),
         input_smoothing=float(input_smoothing),
-        checkpoints=None if checkpoints is None else int(checkpoints),
     )

@@ -37,7 +37,7 @@ from _results import write_results
 import smibjax as sj
 from smibjax._cct import critical_clearing_times
 from smibjax._files import read_gains_file, write_text
-from smibjax._metrics import metrics
+from smibjax._metrics import PHYSICS, metrics
 from smibjax._montecarlo import MonteCarloSpec, compute_chunk, summarize
 from smibjax._scenarios import ScenarioDistribution
 from smibjax.cli.plotting import save_figure
@@ -215,17 +215,7 @@ def main(argv=None) -> int:
             "cct": cct,
             "paper_fault_metrics": {
                 k: float(m._asdict()[k])
-                for k in (
-                    "settling_delta",
-                    "overshoot",
-                    "peak_uf_cmd",
-                    "peak_ur_cmd",
-                    "limit_time_uf",
-                    "limit_time_ur",
-                    "tv_uf",
-                    "tv_ur",
-                    "Vt_max",
-                )
+                for k in ("settling_delta", "overshoot", *PHYSICS[:6], "Vt_max")
             },
         }
         if work is not None:

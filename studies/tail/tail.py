@@ -255,8 +255,8 @@ def main() -> None:
         {
             "label": label,
             "widths": widths,
-            "rtol": specs[0.0].rtol,
-            "atol": specs[0.0].atol,
+            "rtol": specs[0.0].solver.rtol,
+            "atol": specs[0.0].solver.atol,
             "devices": devices,
         },
         {

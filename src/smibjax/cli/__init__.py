@@ -65,7 +65,11 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     from .._process import configure
 
-    configure()
+    try:
+        configure()
+    except ValueError as e:  # a bad SMIBJAX_CACHE_MIN_COMPILE_S
+        print(f"smibjax: error: {e}", file=sys.stderr)
+        return 2
     from .._parameters import ParameterError
 
     try:

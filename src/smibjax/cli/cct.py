@@ -12,6 +12,7 @@ from .options import (
     build_from_args,
     controller_of,
     positive,
+    solver_options,
 )
 
 __all__ = ["add_parser", "run", "add_cct_options", "check_args", "run_grouped"]
@@ -138,9 +139,7 @@ def run_grouped(args, sets, plant, op, init, progress=None) -> dict:
             criterion=getattr(args, "criterion", "settled"),
             adaptation=args.adaptation,
             t_end=args.t_end,
-            max_steps=args.max_steps,
-            rtol=args.rtol,
-            atol=args.atol,
+            solver=solver_options(args),
             progress=progress() if progress else None,
         ).to_dict()
         for g in groups.values()

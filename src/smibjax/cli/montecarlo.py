@@ -22,6 +22,7 @@ from .options import (
     parameter_values,
     positive,
     read_dist,
+    solver_options,
 )
 
 __all__ = ["add_parser", "run", "add_mc_options", "spec_from_args", "runner_of"]
@@ -86,9 +87,7 @@ def spec_from_args(args, params, plant, op, init, dist) -> MonteCarloSpec:
         controller=args.controller or "",
         options=dict(getattr(getattr(args, "context", None), "options", {}) or {}),
         t_end=args.t_end,
-        rtol=args.rtol,
-        atol=args.atol,
-        max_steps=args.max_steps,
+        solver=solver_options(args),
     )
 
 

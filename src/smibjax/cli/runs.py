@@ -126,6 +126,13 @@ def _chunk_ok(out: Path, spec: MonteCarloSpec, k: int) -> bool:
     ) and np.array_equal(cols["index"], np.arange(start, stop))
 
 
+def _flat(spec: dict) -> dict:
+    """A spec's dict with its solver table spread out as solver.NAME keys."""
+    out = {k: v for k, v in spec.items() if k != "solver"}
+    out.update({f"solver.{k}": v for k, v in spec.get("solver", {}).items()})
+    return out
+
+
 def _check_resume(out: Path, spec: MonteCarloSpec) -> dict:
     manifest = out / "run.json"
     if not manifest.is_file():
@@ -133,10 +140,12 @@ def _check_resume(out: Path, spec: MonteCarloSpec) -> dict:
             f"--resume: {str(out)!r} holds no Monte Carlo run (no run.json)"
         )
     saved = json.loads(manifest.read_text())
-    old = saved.get("spec", {})
-    new = spec.to_dict()
+    # field by field, the solver's options as solver.NAME; a run written before 0.2
+    # had rtol, atol, max_steps at the top level (`MonteCarloSpec.upgrade`)
+    old = _flat(MonteCarloSpec.upgrade(saved.get("spec", {})))
+    new = _flat(spec.to_dict())
     # a field added to the spec after the run was written: the run had its default
-    defaults = MonteCarloSpec(n=max(spec.n, 1)).to_dict()
+    defaults = _flat(MonteCarloSpec(n=max(spec.n, 1)).to_dict())
     for key in new:
         if old.get(key, defaults[key]) != new[key]:
             raise ParameterError(
