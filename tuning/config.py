@@ -208,14 +208,6 @@ def check_config(cfg: dict) -> None:
         o["learning_rate"],
         "must be > 0",
     )
-    req(
-        isinstance(o["skip_grad_norm"], (int, float))
-        and not isinstance(o["skip_grad_norm"], bool)
-        and o["skip_grad_norm"] >= 0,
-        "optimizer.skip_grad_norm",
-        o["skip_grad_norm"],
-        "must be a number >= 0 (0: off)",
-    )
     lo = cfg["loss"]
     req(0 <= lo["cvar_q"] < 1, "loss.cvar_q", lo["cvar_q"], "must be in [0, 1)")
     req(

@@ -212,8 +212,7 @@ def run(
     every = int(cfg["validation"]["every"])
     steps, batch, seed = int(cfg["steps"]), int(cfg["batch"]), int(cfg["seed"])
     train_step, _ = problem_module.engine(cfg, setup)
-    skip_norm = float(cfg["optimizer"]["skip_grad_norm"])
-    step_fn = make_step(setup, opt, train_step, skip_norm=skip_norm)
+    step_fn = make_step(setup, opt, train_step)
     validate = make_validation(cfg, problem)
     if resume:
         state = load_checkpoint(out, opt, raw0)
@@ -254,8 +253,6 @@ def run(
             },
             "grad_norm": info.grad_norm,
             "dropped": info.dropped,
-            # (a column only where the option is on: the default's history unchanged)
-            **({"skipped": int(info.skipped)} if skip_norm > 0 else {}),
             "seconds": time.perf_counter() - t0,
         }
         state = dataclasses.replace(

@@ -194,10 +194,9 @@ class StepInfo(NamedTuple):
     stable: jax.Array  # each scenario's stability (training solver)
     grad_norm: float  # global norm of the batch gradient, before clipping
     dropped: int  # scenarios left out for a non-finite gradient
-    skipped: bool = False  # the update was not applied (`skip_norm` of `make_step`)
 
 
-def make_step(setup: Setup, opt, train_step=None, skip_norm: float = 0.0):
+def make_step(setup: Setup, opt, train_step=None):
     """The training step as a pure function, optax-style:
 
         raw, opt_state, info = step(raw, opt_state, (scenarios, scale))
@@ -205,22 +204,16 @@ def make_step(setup: Setup, opt, train_step=None, skip_norm: float = 0.0):
     `raw`: the raw (transformed) parameters; `opt_state`: `opt`'s state; the batch:
     (faults, D) of the scenarios and the factor on the input limits; `info`: a
     `StepInfo`. `train_step` (default: `make_train_step(setup)`) computes the batch
-    loss and gradient. `skip_norm` > 0: a batch gradient whose global norm (before
-    clipping) exceeds it, or is not finite, is not applied: `raw` and `opt_state`
-    come back unchanged and `info.skipped` is set (0, the default: every step is
-    applied)."""
+    loss and gradient."""
     train = make_train_step(setup) if train_step is None else train_step
 
     def step(raw, opt_state, batch):
         scenarios, scale = batch
         loss, per, terms, stable, grads, dropped = train(raw, scenarios, scale)
+        updates, opt_state = opt.update(grads, opt_state, raw)
         gnorm = float(
             jnp.sqrt(sum(jnp.sum(g**2) for g in jax.tree_util.tree_leaves(grads)))
         )
-        if skip_norm > 0 and not gnorm <= skip_norm:  # (NaN and inf skipped too)
-            info = StepInfo(loss, per, terms, stable, gnorm, dropped, True)
-            return raw, opt_state, info
-        updates, opt_state = opt.update(grads, opt_state, raw)
         info = StepInfo(loss, per, terms, stable, gnorm, dropped)
         return optax.apply_updates(raw, updates), opt_state, info
 
