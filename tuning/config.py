@@ -136,6 +136,23 @@ def load_config(
     return cfg
 
 
+CMA_MISSING = (
+    "search.generations > 0 needs pycma (CMA-ES, the [search] stage): "
+    'pip install -e ".[search]"'
+)
+
+
+def require_cma():
+    """The `cma` module (pycma, the `search` extra); a `ParameterError` naming the
+    extra to install if it is missing (the command line prints it as one line and
+    exits with 2, before it writes anything)."""
+    try:
+        import cma
+    except ImportError:
+        raise ParameterError(CMA_MISSING) from None
+    return cma
+
+
 def check_config(cfg: dict) -> None:
     """One-line errors for values out of range."""
     from .finite import check_finite
@@ -254,7 +271,7 @@ def check_config(cfg: dict) -> None:
         "must be >= 0",
     )
     sc = cfg["search"]
-    for key, lo in (("generations", 0), ("population", 2), ("elite", 1), ("batch", 1)):
+    for key, lo in (("generations", 0), ("population", 2), ("batch", 1)):
         v = sc[key]
         req(
             isinstance(v, int) and not isinstance(v, bool) and v >= lo,
@@ -262,13 +279,9 @@ def check_config(cfg: dict) -> None:
             v,
             f"must be an integer >= {lo}",
         )
-    req(
-        sc["elite"] < sc["population"],
-        "search.elite",
-        sc["elite"],
-        f"must be < search.population = {sc['population']}",
-    )
     req(sc["sigma"] > 0, "search.sigma", sc["sigma"], "must be > 0")
+    if sc["generations"] > 0:
+        require_cma()  # the stage is on: pycma must be installed (the search extra)
     o = cfg["optimizer"]
     req(
         o["learning_rate"] > 0,

@@ -30,7 +30,7 @@ from . import problem as problem_module
 from .outputs import write_history
 from .problem import UsageError, build, continuation_scale, make_validation
 from .resume import OLD_CHECKPOINT
-from .search import cross_entropy_search, make_population_score
+from .search import cma_search, make_population_score
 from .train import draw_scenarios, make_step
 
 __all__ = [
@@ -180,7 +180,7 @@ def _search(cfg, space, setup, dist, raw0, quiet):
                 file=sys.stderr,
             )
 
-    return cross_entropy_search(
+    return cma_search(
         space,
         raw0,
         make_population_score(
@@ -189,7 +189,6 @@ def _search(cfg, space, setup, dist, raw0, quiet):
         faults,
         generations=int(sc["generations"]),
         population=int(sc["population"]),
-        elite=int(sc["elite"]),
         sigma=float(sc["sigma"]),
         seed=int(sc["seed"]),
         progress=report,

@@ -133,9 +133,10 @@ def _search_lines(cfg: dict, state) -> list[str]:
     return [
         "## Gradient-free warm start",
         "",
-        f"Cross-entropy method over the raw gains: {len(hist)} generations of "
-        f"{sc['population']} candidates (elite {sc['elite']}, initial spread "
-        f"{sc['sigma']}), each scored on {sc['batch']} fixed faults (seed "
+        f"CMA-ES (pycma) over the raw gains: {len(hist)} generations of "
+        f"{sc['population']} candidates (initial step size {sc['sigma']}, final "
+        f"{last.get('sigma', float('nan')):.3g}), each scored on {sc['batch']} "
+        f"fixed faults (seed "
         f"{sc['seed']}) with the adaptive solver: mean delta settling time, "
         f"{2 * float(cfg['validation']['t_end']):g} s for an unstable run. Score of "
         f"the start {hist[0]['mean_score']:.3f} s; best score "

@@ -1,5 +1,5 @@
-"""Gradient-free warm start: the cross-entropy method on the raw (transformed) gains,
-scored with the exact metrics of the accurate adaptive solver.
+"""Gradient-free warm start: CMA-ES (pycma, the `search` extra) on the raw (transformed)
+gains, scored with the exact metrics of the accurate adaptive solver.
 
 Why: under the realistic input limits the gradients of the saturated loop overflow
 unless the training step is very fine, and from a start where most runs wind up the
@@ -14,13 +14,17 @@ settling time for a stable run and `unstable_cost` for an unstable one.
 
 from __future__ import annotations
 
+import math
+
 import jax
 import jax.numpy as jnp
 import numpy as np
 
 from smibjax import Scenarios
 
-__all__ = ["make_population_score", "cross_entropy_search"]
+from .config import require_cma
+
+__all__ = ["make_population_score", "cma_search"]
 
 
 def make_population_score(setup, unstable_cost: float = 20.0):
@@ -52,7 +56,7 @@ def make_population_score(setup, unstable_cost: float = 20.0):
     return score
 
 
-def cross_entropy_search(
+def cma_search(
     space,
     raw0: dict,
     score,
@@ -60,48 +64,76 @@ def cross_entropy_search(
     *,
     generations: int,
     population: int,
-    elite: int,
     sigma: float,
     seed: int,
     progress=None,
 ) -> tuple[dict, list[dict]]:
-    """Minimize `score` over the raw gains from `raw0`.
+    """Minimize `score` over the raw gains with CMA-ES (pycma), from `raw0`.
 
-    Each generation draws `population - 1` candidates from N(mean, diag(std^2)) plus the
-    mean itself, keeps the `elite` best and moves the mean and std to theirs (std
-    floored at sigma / 20 so the search does not freeze early). Returns (best raw
-    parameters seen, one history row per generation).
+    The search distribution starts at mean `raw0` with step size `sigma` (raw
+    coordinates) and the identity covariance; every generation is `population`
+    candidates, the first of which is the current mean (injected, so its score is
+    known and the best never scores worse than the start). The normal draws come
+    from `numpy.random.default_rng(seed)` (pycma's `randn` option), never from
+    NumPy's global generator: a seed gives the same generations bit for bit,
+    whatever else ran in the process. The search stops after `generations`, or
+    earlier when pycma's criteria on the distribution (tolx, conditioncov,
+    noeffectaxis, ...) say it has collapsed; the criteria on the scores (tolfun,
+    flat fitness) are off, so generations whose candidates all score the same
+    (every run unstable) do not stop it.
+
+    Non-finite scores count as 1e30 s. Returns (best raw parameters seen, one
+    history row per generation: its number, the mean's score, the best score so
+    far, the generation's best and that candidate's stable fraction, the step
+    size sigma after the update).
     """
+    cma = require_cma()
     names = list(raw0)
-    mean = np.array([float(raw0[n]) for n in names])
-    std = np.full(mean.size, float(sigma))
+    x0 = np.array([float(raw0[n]) for n in names])
     rng = np.random.default_rng(seed)
-    best_x, best_cost, history = mean.copy(), np.inf, []
-    for gen in range(generations):
-        xs = mean + std * rng.standard_normal((population - 1, mean.size))
-        xs = np.vstack([mean, xs])
+    opts = {
+        "popsize": int(population),
+        "seed": math.nan,  # leave NumPy's global generator alone: draws come from rng
+        "randn": lambda *shape: rng.standard_normal(shape),
+        "maxiter": int(generations),
+        # a generation whose candidates all score the same (every run unstable: the
+        # realistic plant's start) is no convergence: no value-based stop
+        "tolflatfitness": int(generations) + 1,
+        "tolfun": 0.0,
+        "tolfunhist": 0.0,
+        "tolfunrel": 0.0,
+        "verbose": -9,
+        "verb_disp": 0,
+        "verb_log": 0,
+    }
+    es = cma.CMAEvolutionStrategy(x0, float(sigma), opts)
+    best_x, best_cost, history = x0.copy(), np.inf, []
+    for gen in range(int(generations)):
+        es.inject([es.mean], force=True)  # the mean, scored as candidate 0
+        xs = np.asarray(es.ask(), dtype=float)
         cands = [
             space.to_gains({n: jnp.asarray(x[i]) for i, n in enumerate(names)})
             for x in xs
         ]
         cost, stable = score(cands, faults)
-        cost = np.where(np.isfinite(cost), cost, np.inf)
-        order = np.argsort(cost, kind="stable")
-        if cost[order[0]] < best_cost:
-            best_cost, best_x = float(cost[order[0]]), xs[order[0]].copy()
-        el = xs[order[:elite]]
-        mean = el.mean(axis=0)
-        std = np.maximum(el.std(axis=0), sigma / 20)
+        cost = np.asarray(cost, dtype=float)
+        cost = np.where(np.isfinite(cost), cost, 1e30)
+        k = int(np.argmin(cost))
+        if cost[k] < best_cost:
+            best_cost, best_x = float(cost[k]), xs[k].copy()
+        es.tell(list(xs), cost.tolist())
         history.append(
             {
                 "generation": gen + 1,
                 "mean_score": float(cost[0]),  # the distribution mean's own score
                 "best_score": best_cost,
-                "generation_best": float(cost[order[0]]),
-                "generation_best_stable": float(stable[order[0]]),
-                "mean_std": float(std.mean()),
+                "generation_best": float(cost[k]),
+                "generation_best_stable": float(np.asarray(stable)[k]),
+                "sigma": float(es.sigma),
             }
         )
         if progress is not None:
             progress(history[-1])
+        if es.stop():
+            break
     return {n: jnp.asarray(best_x[i]) for i, n in enumerate(names)}, history
