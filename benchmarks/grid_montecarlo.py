@@ -171,6 +171,7 @@ def montecarlo(args) -> dict:
                 "stable_fraction": summary["stable_fraction"],
                 "exhausted": summary["exhausted"],
                 "peak_rss_mb": after.ru_maxrss / 1024,
+                "cpu_per_scenario_s": cpu / args.n,
             }
             out["runs"][name] = run
             print(
@@ -207,14 +208,16 @@ def main(argv=None) -> int:
     from _results import write_results
 
     res = {"load_average_start": list(os.getloadavg())}
+    config = {k: v for k, v in vars(args).items() if k != "out"}
     for name, fn in (
-        ("sweep", sweep),
         ("compile", compile_times),
         ("montecarlo", montecarlo),
+        ("sweep", sweep),
     ):
         if name not in args.skip:
             print(f"{name}:", flush=True)
             res[name] = fn(args)
+            write_results(args.out, "grid_montecarlo_ieee39", config, res)
     res["load_average_end"] = list(os.getloadavg())
     rows = res.get("sweep", {}).get("rows", [])
     pick = [r for r in rows if r["batch"] == args.chunk] or rows[-1:]
@@ -239,7 +242,6 @@ def main(argv=None) -> int:
             f"{est['solve_s']:.0f} s + compile {comp:.0f} s = {est['total_s']:.0f} s "
             f"(target {TARGET_S:.0f} s)"
         )
-    config = {k: v for k, v in vars(args).items() if k != "out"}
     path = write_results(args.out, "grid_montecarlo_ieee39", config, res)
     print(f"wrote {path}")
     return 0
