@@ -106,6 +106,7 @@ def _child(batches, n_dev: int, cache_dir: str) -> list[dict]:
     ]
     for row in rows:
         row["compile_s"] = row["first_s"] - row["second_s"]
+        row["compile_cpu_s"] = row["first_cpu_s"] - row["second_cpu_s"]
         row["cpu_per_scenario_s"] = row["second_cpu_s"] / row["batch"]
     return rows
 
@@ -134,7 +135,8 @@ def compile_times(args) -> dict:
             (row,) = _child([args.chunk], n_dev, d)
             out[name] = row
             print(
-                f"  compile {name}: {row['compile_s']:.1f} s (first call "
+                f"  compile {name}: {row['compile_s']:.1f} s wall, "
+                f"{row['compile_cpu_s']:.1f} CPU-s (first call "
                 f"{row['first_s']:.1f} s, second {row['second_s']:.1f} s; setup "
                 f"{row['setup_s']:.1f} s), load {row['load']:.1f}",
                 flush=True,
