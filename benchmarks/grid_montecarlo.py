@@ -226,7 +226,7 @@ def main(argv=None) -> int:
     if pick:
         per = pick[0]["cpu_per_scenario_s"]
         cores = 1  # the CLI runs on one host device
-        comp = res.get("compile", {}).get("cold", {}).get("compile_s", 0.0)
+        comp = res.get("compile", {}).get("cold", {}).get("compile_cpu_s", 0.0)
         est = {
             "cpu_per_scenario_s": per,
             "batch": pick[0]["batch"],
@@ -235,8 +235,9 @@ def main(argv=None) -> int:
             "solve_s": args.n * per / cores,
             "compile_cold_s": comp,
             "total_s": args.n * per / cores + comp,
-            "note": "n x CPU-s per scenario (one device, warm) / cores + the cold "
-            "compile measured here: the wall time on an otherwise idle machine",
+            "note": "n x CPU-s per scenario (one device, warm) / cores + the CPU-s of "
+            "the cold compile measured here: the wall time on an otherwise idle "
+            "machine",
         }
         res["estimate_idle"] = est
         print(
