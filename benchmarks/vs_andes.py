@@ -487,7 +487,11 @@ def parse_args(argv=None):
     ap.add_argument("--cases", nargs="+", default=None, help="accuracy cases")
     ap.add_argument("--skip", nargs="*", default=[], choices=["a", "b", "c", "compile"])
     ap.add_argument(
-        "--devices", type=int, default=1, help="host devices to shard over (2 stalls)"
+        "--devices",
+        type=int,
+        default=1,
+        help="host devices to shard over: 1 only (2 deadlock in XLA's CPU runtime at "
+        "larger batches; docs/performance.md)",
     )
     ap.add_argument("--repeat", type=int, default=2)
     ap.add_argument("--rtol", type=float, default=1e-6)
@@ -496,6 +500,14 @@ def parse_args(argv=None):
     ap.add_argument("--tag", default="")
     ap.add_argument("--out", default=str(HERE / "results"))
     args = ap.parse_args(argv)
+    if args.devices != 1:
+        # splitting a grid batch over two host devices hangs (NamedSharding at 256
+        # scenarios, shard_map at 64, device_map on a second call at 256: the process
+        # idle, its threads asleep); see smibjax.grid.metrics.batch_metrics
+        ap.error(
+            f"--devices {args.devices} is not allowed: 1 (splitting a batch over host "
+            "devices deadlocks in XLA's CPU runtime, docs/performance.md)"
+        )
     full = dict(n_mc=4096, n_andes=8, n_ieee39=1024, andes_tstep=0.002)
     quick = dict(n_mc=256, n_andes=4, n_ieee39=32, andes_tstep=0.005)
     for k, v in (full if args.full else quick).items():

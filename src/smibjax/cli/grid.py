@@ -22,6 +22,11 @@ from .options import CLIError
 
 __all__ = ["add_case_options", "run_simulate", "run_montecarlo", "run_cct", "load"]
 
+# the largest Monte Carlo chunk of a --case run: a chunk keeps every scenario's saved
+# states (IEEE 39 at 1,001 samples: 1 MB each); the CPU time per scenario does not
+# fall beyond a few dozen (benchmarks/grid_montecarlo.py)
+GRID_CHUNK = 128
+
 
 def add_case_options(p, events: bool = True) -> None:
     """The options that choose a multi-machine case (and, for `events`, the events
@@ -403,7 +408,7 @@ def _grid_distribution(case, args):
             raise CLIError(
                 f"--t-end {args.t_end} must exceed the latest event time {dist.t_last():g} s"
             )
-        n, chunk = int(args.n), int(min(args.chunk, args.n))
+        n, chunk = int(args.n), int(min(args.chunk, args.n, GRID_CHUNK))
         if n < 1 or chunk < 1:
             raise CLIError(f"--n {args.n} and --chunk {args.chunk} must be >= 1")
         sample_events(case.system, dist, 1, args.seed)  # checks buses and lines
@@ -415,36 +420,39 @@ def _grid_distribution(case, args):
 def grid_rows(case, op, dist, n, chunk, args, desc="scenarios"):
     """The `GridMetrics` rows (field -> list) and the scenarios (fault bus or
     branch position, fault and clearing times) of `n` scenarios drawn from `dist`
-    with seed `args.seed` (chunk k with seed + its first index: the same scenarios
-    for every parameter set of the same case)."""
+    with seed `args.seed`, all drawn at once (the rows do not depend on --chunk; the
+    same scenarios for every parameter set of the same case), then run in chunks of
+    one size (the last padded by repeating its final scenario), so one program is
+    compiled: simulation and metrics are one compiled call per chunk."""
     import jax
     from tqdm import tqdm
 
     from .._process import cache_state
-    from ..grid.metrics import GridMetrics, grid_metrics
+    from ..grid.metrics import GridMetrics, batch_metrics
     from ..grid.scenarios import sample_events
-    from ..grid.simulate import simulate_batch
 
+    events = sample_events(case.system, dist, n, args.seed)
+    run = batch_metrics(case, op, **_solver_kw(args))
     rows = {k: [] for k in GridMetrics.FIELDS}
-    meta = {"bus": [], "t_fault": [], "t_clear": []}
+    first = events[0]
+    meta = {
+        "bus": np.asarray(first.bus if hasattr(first, "bus") else first.branch),
+        "t_fault": np.asarray(first.t_on),
+        "t_clear": np.asarray(first.t_off),
+    }
+    meta = {k: v.tolist() for k, v in meta.items()}
     print(
-        f"compiling the batched case simulator (cache: {cache_state('jit_simulate_batch')})",
+        f"compiling the batched case simulator (cache: {cache_state('jit_grid_batch_metrics')})",
         file=sys.stderr,
     )
     bar = tqdm(total=n, desc=desc, unit="sc", file=sys.stderr)
     for start in range(0, n, chunk):
         k = min(chunk, n - start)
-        ev = sample_events(case.system, dist, chunk, args.seed + start)
-        tr = simulate_batch(case, op, ev, **_solver_kw(args))
-        m = jax.vmap(
-            lambda t, e: grid_metrics(case, t, e.switches()[0]), in_axes=(0, 0)
-        )(tr, ev[0])
+        idx = np.minimum(np.arange(start, start + chunk), n - 1)
+        ev = jax.tree_util.tree_map(lambda a, idx=idx: np.asarray(a)[idx], events)
+        m = run(ev)
         for f in GridMetrics.FIELDS:
             rows[f] += np.asarray(getattr(m, f))[:k].tolist()
-        where = ev[0].bus if hasattr(ev[0], "bus") else ev[0].branch
-        meta["bus"] += np.asarray(where)[:k].tolist()
-        meta["t_fault"] += np.asarray(ev[0].t_on)[:k].tolist()
-        meta["t_clear"] += np.asarray(ev[0].t_off)[:k].tolist()
         bar.update(k)
     bar.close()
     return rows, meta

@@ -313,12 +313,23 @@ def evaluate(case: Case, op: Operating, mats: StageMatrices, stage, y, u=None):
     return dy, meas, i_net
 
 
+def _rhs(case: Case, op: Operating, mats: StageMatrices, t_switch, t, y):
+    stage = jnp.sum(t >= t_switch) if t_switch.shape[0] else 0
+    return evaluate(case, op, mats, stage, y)[0]
+
+
+# traced once per run: diffrax calls the vector field from several places (the
+# term check, the initial step, the step itself, the dense output), and a nested jit
+# turns each later call into a cached jaxpr instead of a Python re-trace of every
+# device group (tracing is most of the cost of a cached compile)
+_rhs_jit = eqx.filter_jit(_rhs)
+
+
 def vector_field(case: Case, op: Operating, mats: StageMatrices, t_switch):
     """The diffrax vector field f(t, y, args): the stage in force at t is the number
     of switch times <= t."""
 
     def f(t, y, args):
-        stage = jnp.sum(t >= t_switch) if t_switch.shape[0] else 0
-        return evaluate(case, op, mats, stage, y)[0]
+        return _rhs_jit(case, op, mats, t_switch, t, y)
 
     return f

@@ -17,13 +17,15 @@ from the first event:
 from __future__ import annotations
 
 import equinox as eqx
+import jax
 import jax.numpy as jnp
 from jaxtyping import Array, Bool, Float
 
-from .loop import Case
-from .simulate import GridTrajectory, coi_angles
+from .events import switch_times
+from .loop import Case, Operating
+from .simulate import GridTrajectory, coi_angles, simulate_case
 
-__all__ = ["GridMetrics", "grid_metrics"]
+__all__ = ["GridMetrics", "grid_metrics", "batch_metrics"]
 
 
 class GridMetrics(eqx.Module):
@@ -37,6 +39,7 @@ class GridMetrics(eqx.Module):
     v_max: Float[Array, "*b"]
     efd_max: Float[Array, "*b"]
     exhausted: Bool[Array, "*b"]
+    n_steps: Array | None = None  # accepted steps of the run (not a CSV column)
 
     FIELDS = (
         "stable",
@@ -92,4 +95,63 @@ def grid_metrics(
         v_max=jnp.nanmax(vb),
         efd_max=jnp.nanmax(jnp.where(mask, tr.efd, -jnp.inf)),
         exhausted=tr.exhausted,
+        n_steps=tr.n_steps,
     )
+
+
+def batch_metrics(
+    case: Case,
+    op: Operating,
+    *,
+    devices=None,
+    band_angle: float = 0.01,
+    band_speed: float = 1e-4,
+    **options,
+):
+    """A function `events -> GridMetrics` (leading batch axis) that simulates a batch of
+    scenarios of one event structure and returns only their metrics, in one compiled
+    program: the trajectories stay inside it (XLA drops the samples the metrics do not
+    read, and no trajectory is copied out). `options` as `simulate_case`; a
+    scenario's first event time is its first switch time. Compiled once per batch
+    size (a chunked Monte Carlo pads its last chunk to the chunk size).
+
+    `devices`: the host devices to split the batch over with `jax.shard_map` (each
+    running its own adaptive loop); default the first device only. Splitting over two
+    host devices deadlocks in this JAX/XLA (0.10.2) on the CPU backend at larger
+    batches: kundur-gencls, 10 s, through `shard_map` returned at 8 and 32 scenarios
+    and hung at 64 (the process idle, every thread asleep, CPU time flat); through
+    `device_map` (one executable per device, run from two threads) it returned at 64
+    and the first call at 256, then hung on the second call at 256; `NamedSharding`
+    on the batch axis hung at 256 (issue 28; its partitioned while loops also
+    all-reduce the loop predicate across devices at every iteration). See
+    docs/performance.md.
+    """
+    from .._parallel import shard_batch
+
+    rep, static = eqx.partition((case, op), eqx.is_array)
+
+    def grid_batch_metrics(rep, events):  # its name keys the compilation cache
+        case_, op_ = eqx.combine(rep, static)
+
+        def one(ev):
+            tr = simulate_case(case_, op_, ev, **options)
+            t_first = switch_times(ev)[0]
+            return grid_metrics(case_, tr, t_first, band_angle, band_speed)
+
+        return jax.vmap(one)(events)
+
+    if devices is None:
+        devices = jax.devices()[:1]
+    call = shard_batch(grid_batch_metrics, devices)
+
+    def run(events) -> GridMetrics:
+        n = max(
+            jnp.shape(x)[0] for x in jax.tree_util.tree_leaves(events) if jnp.ndim(x)
+        )
+        full = jax.tree_util.tree_map(
+            lambda x: jnp.broadcast_to(x, (n,)) if jnp.ndim(x) == 0 else jnp.asarray(x),
+            events,
+        )
+        return call(rep, full)
+
+    return run
