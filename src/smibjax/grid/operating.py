@@ -7,6 +7,7 @@ e.g. drawn per scenario; check `pf.converged`)."""
 from __future__ import annotations
 
 import equinox as eqx
+import jax
 import numpy as np
 
 from .loop import Case, Operating, initialize
@@ -29,7 +30,11 @@ def operating_point(
     if load_factor != 1.0 or gen_factor != 1.0:
         system = scale_operating_point(system, load_factor, gen_factor)
     pf = solve_power_flow(system)
-    op = initialize(_with_system(case, system), pf.vm, pf.va, pf.p_gen, pf.q_gen)
+    scaled = _with_system(case, system)
+    # one compiled program, not a hundred one-operation ones run eagerly (the case's
+    # index arrays stay concrete in the closure)
+    init = jax.jit(lambda vm, va, p, q: initialize(scaled, vm, va, p, q))
+    op = init(pf.vm, pf.va, pf.p_gen, pf.q_gen)
     return op, pf
 
 
