@@ -110,6 +110,9 @@ class Engine:
         for name in ("t_end", "dt_save", "rtol", "atol"):
             require_positive(name, getattr(self, name))
         require_count("max_steps", self.max_steps)
+        from ._closed_loop import require_start
+
+        require_start(self.plant, self.op)
 
     def key(self) -> tuple:
         """Everything that is compiled in (hashable)."""
