@@ -215,6 +215,46 @@ def require_solver(rtol, atol, max_steps) -> None:
     require_integer("max_steps", max_steps, 1, MAX_STEPS)
 
 
+BYTES_PER_SAMPLE = 8 * 40
+"""Memory (bytes) one saved sample of one run takes while a batch runs: the states,
+the observed outputs and their metric reductions, float64, with slack for XLA's
+temporaries (an estimate for planning, not a measurement)."""
+
+
+def memory_budget() -> int:
+    """The memory (bytes) a batch may plan to use: `SMIBJAX_MEMORY_LIMIT` (bytes) if
+    set, else half of the machine's physical memory."""
+    import os
+
+    env = os.environ.get("SMIBJAX_MEMORY_LIMIT", "").strip()
+    if env.isdigit():
+        return int(env)
+    try:
+        total = os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+    except (ValueError, OSError, AttributeError):  # pragma: no cover - not POSIX
+        total = 16 * 2**30
+    return max(total // 2, 2**28)
+
+
+def _gib(n: float) -> str:
+    return f"{n / 2**30:.3g} GiB"
+
+
+def require_memory(what: str, runs: float, samples: float, hint: str) -> None:
+    """Raise `ParameterError` unless a batch of `runs` runs of `samples` saved samples
+    each fits `memory_budget()` (estimated with `BYTES_PER_SAMPLE`), before any work;
+    `hint` says what to change."""
+    need = float(runs) * float(samples) * BYTES_PER_SAMPLE
+    budget = memory_budget()
+    if not need <= budget:
+        raise ParameterError(
+            f"{what} is not allowed: one batch of {float(runs):.4g} runs x "
+            f"{float(samples):.4g} samples needs about {_gib(need)}, more than the "
+            f"{_gib(budget)} available (half the memory; SMIBJAX_MEMORY_LIMIT "
+            f"overrides): {hint}"
+        )
+
+
 def check_tree(data, source: str):
     """`data` (parsed JSON/TOML), or `ParameterError` where it nests deeper than
     `MAX_DEPTH` or holds an integer beyond +-`MAX_INT` (named by its key path)."""

@@ -3,8 +3,12 @@ table on stdout and (with --out) a JSON file and its plot."""
 
 from __future__ import annotations
 
-from .._cct import check_options, critical_clearing_times, lane_kind
+import sys
+import warnings
+
+from .._cct import BudgetWarning, check_options, critical_clearing_times, lane_kind
 from .._files import check_new_file, write_json
+from .._parameters import PLANT_NAMES
 from .grid import add_case_options
 from .options import (
     CLIError,
@@ -183,8 +187,22 @@ def run(args) -> int:
                 "is written beside it as .png)"
             )
     sets, (plant, op, init) = _sets(args)
-    res = run_grouped(args, sets, plant, op, init, progress_bar)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", BudgetWarning)
+        res = run_grouped(args, sets, plant, op, init, progress_bar)
     res["context"] = args.contexts
+    # what the CCTs were computed for: each set's gains, the plant and the
+    # operating point (with every --set / gains-file override applied)
+    res["gains"] = {n: c.parameters() for n, c in sets.items()}
+    res["plant"] = {k: float(getattr(plant, k)) for k in PLANT_NAMES}
+    res["op"] = {"delta_e": float(op.delta_e), "Pm_ref": float(op.Pm_ref)}
+    res["init"] = {"th1": float(init.th1), "th2": float(init.th2)}
+    res["sets_given"] = list(args.set)
+    for w in caught:
+        if issubclass(w.category, BudgetWarning):
+            print(f"smibjax: warning: {w.message}", file=sys.stderr)
+        else:
+            warnings.showwarning(w.message, w.category, w.filename, w.lineno)
     print_cct(res)
     if out is not None:
         write_json(out, res)
