@@ -274,10 +274,16 @@ def gains_context(path, controller=None, adaptation=None, preset=None, complete=
     flags given (None: not given): flag, else file, else the paper's default. The
     warnings (a flag contradicting the file) and notes (a flat file) go to stderr,
     one line each."""
-    gf = read_gains_file(path, complete=complete) if path else None
-    ctx, values, messages = resolve(
-        gf, controller, adaptation, preset, source=f"--gains {path}"
-    )
+    try:
+        gf = read_gains_file(path, complete=complete) if path else None
+        ctx, values, messages = resolve(
+            gf, controller, adaptation, preset, source=f"--gains {path}"
+        )
+    except ParameterError as e:
+        # the file's own key names the value, never a flag of the same name
+        text = str(e)
+        raise CLIError(text if str(path) in text else f"{text} (in --gains {path})")
+    
     for m in messages:
         print(f"smibjax: {m}", file=sys.stderr)
     return ctx, values
