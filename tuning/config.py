@@ -82,7 +82,9 @@ def _check_types(cfg: dict, schema: dict, path=()) -> None:
         d = schema[k]
         if isinstance(d, dict):
             if not isinstance(v, dict):
-                raise ParameterError(f"{key} = {_short(v)} is not allowed: must be a table")
+                raise ParameterError(
+                    f"{key} = {_short(v)} is not allowed: must be a table"
+                )
             if here in _FREE_TABLES:
                 continue
             _check_types(v, d, here)

@@ -24,7 +24,6 @@ from jaxtyping import Array, Float
 from ._validate import (
     ParameterError,
     concrete_value,
-    is_concrete,
     require,
     require_finite,
 )

@@ -282,8 +282,10 @@ def gains_context(path, controller=None, adaptation=None, preset=None, complete=
     except ParameterError as e:
         # the file's own key names the value, never a flag of the same name
         text = str(e)
-        raise CLIError(text if str(path) in text else f"{text} (in --gains {path})")
-    
+        raise CLIError(
+            text if str(path) in text else f"{text} (in --gains {path})"
+        ) from None
+
     for m in messages:
         print(f"smibjax: {m}", file=sys.stderr)
     return ctx, values
