@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import argparse
 import datetime
-import math
 import os
 import re
 from pathlib import Path
@@ -34,8 +33,6 @@ class Parser(argparse.ArgumentParser):
             kind = kw.get("type")
             if kind is int:
                 kw["type"] = integer(flag, *INT_BOUNDS.get(flag, (-MAX_INT, MAX_INT)))
-            elif kind is float:
-                kw["type"] = finite(flag)
             elif kind is None and flag in PATH_FLAGS:
                 kw["type"] = path_text(flag)
         return super().add_argument(*names, **kw)
@@ -99,26 +96,6 @@ def integer(flag: str, lo: int, hi):
         return v
 
     parse.__name__ = "integer"
-    return parse
-
-
-def finite(flag: str):
-    """An argparse type: a finite number (nan and inf are refused while parsing)."""
-
-    def parse(text: str) -> float:
-        try:
-            v = float(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(
-                f"{text[:40]!r} is not allowed: must be a number"
-            ) from None
-        if not math.isfinite(v):
-            raise argparse.ArgumentTypeError(
-                f"{text[:40]!r} is not allowed: must be a finite number"
-            )
-        return v
-
-    parse.__name__ = "number"
     return parse
 
 
