@@ -337,7 +337,7 @@ def test_any_gains_json_is_read_or_one_line(tmp_path_factory, data):
         (["simulate", "--plot", " "], "--plot"),
         (["montecarlo", "--workers", str(10**6)], "the CPU count"),
         (["montecarlo", "--seed", "1.5"], "must be an integer"),
-        (["simulate", "--fault-time", "nan"], "--fault-time nan is not allowed"),
+        (["simulate", "--fault-time", "nan"], "t_fault = nan is not allowed"),
         (["simulate", "--t-end", "true"], "must be a number"),
     ],
 )

@@ -78,19 +78,21 @@ otherwise be the same as no --out)."""
 
 def integer(flag: str, lo: int, hi):
     """An argparse type: an integer (decimal digits, no fraction, no exponent, not
-    longer than 30 characters) within [lo, hi] (`hi` may be a function)."""
+    longer than 30 characters) within [lo, hi] (`hi` may be a function). A refusal
+    is a `CLIError` naming the flag as the user wrote it (`--n 0 is not allowed`)."""
 
     def parse(text: str) -> int:
         t = text.strip()
         top = hi() if callable(hi) else hi
         if len(t) > 30 or not t.lstrip("+-").isdigit():
-            raise argparse.ArgumentTypeError(
-                f"{text[:40]!r} is not allowed: must be an integer in [{lo}, {top}]"
+            raise CLIError(
+                f"{flag} {text[:40]!r} is not allowed: must be an integer in "
+                f"[{lo}, {top}]"
             )
         v = int(t)
         if not lo <= v <= top:
-            raise argparse.ArgumentTypeError(
-                f"{v} is not allowed: must be an integer in [{lo}, {top}]"
+            raise CLIError(
+                f"{flag} {v} is not allowed: must be an integer in [{lo}, {top}]"
                 + (" (the CPU count)" if callable(hi) else "")
             )
         return v
