@@ -416,3 +416,18 @@ def test_read_data_deep_toml_is_one_line(tmp_path):
     with pytest.raises(ParameterError, match="nested deeper|not valid"):
         read_data(p)
     assert tomllib  # the reader the files use
+
+
+def test_progress_bar_closed_before_an_error_line(capsys):
+    import sys
+
+    from smibjax.cli.cct import progress_bar
+
+    update = progress_bar("cct")
+    update(1, 5)  # the work stops here, on an error
+    update.close()
+    print("smibjax: error: boom", file=sys.stderr)
+    err = capsys.readouterr().err
+    assert "\nsmibjax: error: boom" in err  # on a line of its own
+    update(5, 5)  # nothing more is drawn after the close
+    assert "cct" not in capsys.readouterr().err

@@ -165,9 +165,16 @@ def progress_bar(desc: str = "cct scan + bisection"):
             bar = state["bar"] = tqdm(total=total, desc=desc)
         bar.update(done - bar.n)
         if done >= total:
-            bar.close()
-            state["closed"] = True
+            close()
 
+    def close() -> None:
+        """Close the bar (also when the work stopped early, on an error): an error
+        line then starts on a line of its own."""
+        if state.get("bar") is not None and not state.get("closed"):
+            state["bar"].close()
+        state["closed"] = True
+
+    update.close = close
     return update
 
 
@@ -187,9 +194,19 @@ def run(args) -> int:
                 "is written beside it as .png)"
             )
     sets, (plant, op, init) = _sets(args)
+    bars = []
+
+    def bar():  # every bar this command draws, closed before any line is printed
+        bars.append(progress_bar())
+        return bars[-1]
+
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", BudgetWarning)
-        res = run_grouped(args, sets, plant, op, init, progress_bar)
+        try:
+            res = run_grouped(args, sets, plant, op, init, bar)
+        finally:
+            for b in bars:
+                b.close()
     res["context"] = args.contexts
     # what the CCTs were computed for: each set's gains, the plant and the
     # operating point (with every --set / gains-file override applied)
