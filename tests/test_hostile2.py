@@ -431,3 +431,25 @@ def test_progress_bar_closed_before_an_error_line(capsys):
     assert "\nsmibjax: error: boom" in err  # on a line of its own
     update(5, 5)  # nothing more is drawn after the close
     assert "cct" not in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(
+    "label, want", [("..", "gains"), (".", "gains"), ("a/b", "a_b"), ("ok-1", "ok-1")]
+)
+def test_compare_set_labels_stay_inside_out(label, want, tmp_path):
+    from smibjax.cli.compare import safe_label
+
+    got = safe_label(label)
+    assert got == want
+    assert (tmp_path / "out" / got).resolve().parent == (tmp_path / "out").resolve()
+
+
+def test_compare_set_of_a_gain_a_builtin_set_lacks_warns(capsys):
+    from smibjax.cli.compare import _warn_dropped_sets, resolve_gain_set_context
+
+    for spec in ("avr-pss", "none", "paper"):
+        label, _, ctx, _ = resolve_gain_set_context(spec, {"beta1": 3.0})
+        _warn_dropped_sets(label, ctx, {"beta1": 3.0})
+    err = capsys.readouterr().err.splitlines()
+    assert len(err) == 2  # avr-pss and none drop it; paper takes it
+    assert all("--set beta1 does not apply" in ln for ln in err)
