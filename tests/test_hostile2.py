@@ -453,3 +453,48 @@ def test_compare_set_of_a_gain_a_builtin_set_lacks_warns(capsys):
     err = capsys.readouterr().err.splitlines()
     assert len(err) == 2  # avr-pss and none drop it; paper takes it
     assert all("--set beta1 does not apply" in ln for ln in err)
+
+
+# 4. Extreme finite plant values: metrics defined for every way a run ends.
+def test_extreme_plants_give_defined_metrics():
+    """32 plants with every value drawn log-uniformly over 1e-3..1e3 x its paper value
+    (valid ones only), one batched run each: a run that reached t_end has finite
+    metrics (settling times may be inf: not settled); a run that lost synchronism
+    has inf settling times and no NaN; only a spent step budget gives NaN."""
+    rng = np.random.default_rng(34)
+    names = ("H", "D", "T0", "V", "Xd", "XT", "XL", "Tr", "Pm", "f")
+    base = sj.Plant()
+    rows = []
+    while len(rows) < 32:
+        kw = {n: float(getattr(base, n)) * 10 ** rng.uniform(-3, 3) for n in names}
+        try:
+            sj.Plant(**kw)  # (B0 = 0: the start is inside the domain)
+        except ParameterError:
+            continue
+        rows.append(kw)
+    plants = jax.tree_util.tree_map(
+        lambda *xs: jnp.stack(xs), *[sj.Plant(**r) for r in rows]
+    )
+
+    @eqx.filter_jit
+    @eqx.filter_vmap
+    def run(plant):
+        tr = sj.simulate(
+            sj.Gains(),
+            plant=plant,
+            solver=sj.SolverOptions(max_steps=4000),
+            save=sj.SaveOptions(2.0, 0.05),
+        )
+        return tr.lost_sync, tr.budget_exhausted, metrics(tr)
+
+    lost, spent, m = run(plants)
+    lost, spent = np.asarray(lost), np.asarray(spent)
+    vals = {k: np.asarray(v, dtype=float) for k, v in m._asdict().items()}
+    settling = ("settling_delta", "settling_Vt", "settling_omega")
+    for k, v in vals.items():
+        assert not np.isnan(v[~spent]).any(), k
+        if k not in settling and k != "overshoot":
+            assert np.isfinite(v[~spent & ~lost]).all(), k
+        if k in settling:
+            assert np.isinf(v[lost]).all(), k
+    assert lost.any() and (~lost & ~spent).any()  # both ends are exercised
