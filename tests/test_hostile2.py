@@ -5,7 +5,6 @@ has defined metrics; outputs are never clobbered at write time."""
 import json
 import math
 import os
-from pathlib import Path
 
 import equinox as eqx
 import jax
