@@ -95,7 +95,7 @@ def test_solver_tolerances_reach_the_run(capsys):
         (["simulate", "--fault-location", "1.5"], "lam = 1.5"),
         (["simulate", "--t-end", "-2"], "--t-end: -2 is not allowed: must be > 0"),
         (["simulate", "--controller", "pid"], "invalid choice"),
-        (["simulate", "--fault-time", "abc"], "must be a number"),
+        (["simulate", "--fault-time", "abc"], "invalid float"),
         (["simulate", "--atol=-1e-6"], "--atol: -1e-6 is not allowed"),
         (["montecarlo", "--n", "4", "--rtol", "0"], "--rtol: 0 is not allowed"),
     ],
