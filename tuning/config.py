@@ -153,11 +153,91 @@ def require_cma():
     return cma
 
 
+def _type_name(v) -> str:
+    if isinstance(v, bool):
+        return "true or false"
+    if isinstance(v, int):
+        return "an integer"
+    if isinstance(v, float):
+        return "a number"
+    if isinstance(v, str):
+        return "a string"
+    if isinstance(v, list):
+        return "a list"
+    return "a table"
+
+
+def _check_types(cfg: dict, schema: dict, path=()) -> None:
+    """Every value has the type of its default (the schema): a bool is never a
+    number, a float never an integer (`validation.n = 2.5`), a number never a
+    string (`learning_rate = "0.1"`), a table never a list or a value."""
+    for k, v in cfg.items():
+        here = (*path, k)
+        key = ".".join(here)
+        if k not in schema:
+            continue
+        d = schema[k]
+        if isinstance(d, dict):
+            if not isinstance(v, dict):
+                raise ParameterError(
+                    f"{key} = {_short(v)} is not allowed: must be a table"
+                )
+            if here in _FREE_TABLES:
+                continue
+            _check_types(v, d, here)
+            continue
+        if isinstance(d, bool):
+            ok = isinstance(v, bool)
+        elif isinstance(d, int):
+            ok = isinstance(v, int) and not isinstance(v, bool)
+        elif isinstance(d, float):
+            ok = isinstance(v, (int, float)) and not isinstance(v, bool)
+        elif isinstance(d, str):
+            ok = isinstance(v, str)
+        else:  # a list
+            ok = isinstance(v, list)
+        if not ok:
+            raise ParameterError(
+                f"{key} = {_short(v)} is not allowed: must be {_type_name(d)}"
+            )
+
+
+def _short(v) -> str:
+    if isinstance(v, int) and not isinstance(v, bool) and abs(v) > 10**30:
+        return f"<an integer of {len(str(abs(v)))} digits>"
+    text = repr(v)
+    return text if len(text) <= 60 else text[:57] + "..."
+
+
+def _is_num(v) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool)
+
+
+def _check_range(key: str, v) -> tuple[float, float]:
+    """A [lo, hi] range of two finite numbers, lo <= hi."""
+    if not (isinstance(v, list) and len(v) == 2 and all(_is_num(x) for x in v)):
+        raise ParameterError(
+            f"{key} = {_short(v)} is not allowed: must be a range [lo, hi] of two "
+            "numbers"
+        )
+    lo, hi = (float(x) for x in v)
+    if not (math.isfinite(lo) and math.isfinite(hi)):
+        raise ParameterError(f"{key} = {_short(v)} is not allowed: must be finite")
+    return lo, hi  # an empty range (lo > hi) is named by the scenario checks
+
+
 def check_config(cfg: dict) -> None:
-    """One-line errors for values out of range."""
+    """One-line errors for values of the wrong type or out of range, and for
+    settings that make the task meaningless (horizons before the faults, unknown
+    bounded gains, a negative clip norm or settling band)."""
+    from smibjax._validate import check_tree
+
     from .finite import check_finite
 
+    check_tree(cfg, "the configuration")
+    _check_types(cfg, load_toml(DEFAULT))
     check_finite(cfg)  # inf/NaN anywhere (issue 16)
+    _check_meaning(cfg)
 
     def req(ok, key, value, allowed):
         if not ok:
@@ -310,3 +390,101 @@ def check_config(cfg: dict) -> None:
                     f"unknown gain {n!r} in {key}: controller {cfg['controller']!r} "
                     f"has {', '.join(names)}"
                 )
+
+
+def _check_meaning(cfg: dict) -> None:
+    """The settings that type-check but make the task meaningless."""
+    from smibjax._validate import require_integer, require_memory
+
+    def req(ok, key, value, allowed):
+        if not ok:
+            raise ParameterError(f"{key} = {_short(value)} is not allowed: {allowed}")
+
+    for key in ("seed",):
+        require_integer(key, cfg[key], 0, 2**32 - 1)
+    require_integer("validation.seed", cfg["validation"]["seed"], 0, 2**32 - 1)
+    require_integer("search.seed", cfg["search"]["seed"], 0, 2**32 - 1)
+    require_integer("steps", cfg["steps"], 0, 10**9)
+    require_integer("batch", cfg["batch"], 1, 10**9)
+    require_integer("validation.n", cfg["validation"]["n"], 1, 10**9)
+    require_integer("train.max_steps", cfg["train"]["max_steps"], 1, 10**8)
+    ranges = {}
+    for k, v in cfg["scenarios"].items():
+        ranges[k] = _check_range(f"scenarios.{k}", v)
+    if "t_fault" in ranges and "clear_duration" in ranges:
+        latest = ranges["t_fault"][1] + ranges["clear_duration"][1]
+        for part in ("train", "validation"):
+            t_end = cfg[part]["t_end"]
+            req(
+                t_end > latest,
+                f"{part}.t_end",
+                t_end,
+                f"must be after the latest fault time and its clearing, {latest:g} "
+                "s (the highs of scenarios.t_fault + clear_duration): every fault "
+                "must happen and clear within the run",
+            )
+    for key in ("rtol", "atol"):
+        v = cfg["train"][key]
+        req(
+            0 < v <= 1e-2,
+            f"train.{key}",
+            v,
+            "must be in (0, 0.01] (looser, the solver decides the verdict)",
+        )
+    o = cfg["optimizer"]
+    req(o["clip_norm"] > 0, "optimizer.clip_norm", o["clip_norm"], "must be > 0")
+    req(
+        0 <= o["final_lr_fraction"] <= 1,
+        "optimizer.final_lr_fraction",
+        o["final_lr_fraction"],
+        "must be in [0, 1]",
+    )
+    lo = cfg["loss"]
+    for key in ("delta_band", "Vt_band"):
+        req(lo[key] > 0, f"loss.{key}", lo[key], "must be > 0")
+    for key, v in lo.items():
+        if key not in ("delta_band", "Vt_band", "cvar_q"):
+            req(v >= 0, f"loss.{key}", v, "must be >= 0 (a weight)")
+    g = cfg["gains"]
+    req(
+        g.get("beta_abs_min", 0.0) >= 0,
+        "gains.beta_abs_min",
+        g.get("beta_abs_min"),
+        "must be >= 0",
+    )
+    req(
+        all(isinstance(n, str) for n in g["freeze"]),
+        "gains.freeze",
+        g["freeze"],
+        "must be a list of gain names",
+    )
+    for k, v in g["bounds"].items():  # (unknown names: check_config)
+        _check_range(f"gains.bounds.{k}", v)
+    proj = cfg.get("options", {}).get("projection", [])
+    req(
+        proj == []
+        or (
+            isinstance(proj, list)
+            and len(proj) == 2
+            and all(
+                isinstance(r, list) and len(r) == 2 and all(_is_num(x) for x in r)
+                for r in proj
+            )
+        ),
+        "options.projection",
+        proj,
+        "must be [] or [[lo1, hi1], [lo2, hi2]] of numbers",
+    )
+    samples = round(cfg["train"]["t_end"] / 0.01) + 1
+    require_memory(
+        f"batch = {cfg['batch']}",
+        cfg["batch"],
+        4 * samples,  # the forward samples and the reverse pass's
+        "lower batch (training scenarios per step)",
+    )
+    require_memory(
+        f"validation.n = {cfg['validation']['n']}",
+        cfg["validation"]["n"],
+        round(cfg["validation"]["t_end"] / 0.01) + 1,
+        "lower validation.n",
+    )

@@ -119,19 +119,33 @@ def load_checkpoint(out: Path, opt, raw0) -> TrainState:
         raise UsageError(
             f"--resume: no checkpoint in {str(out)!r} ({CHECKPOINT} missing)"
         )
-    meta = json.loads(side.read_text(encoding="utf-8"))
-    like = TrainState(
-        raw=raw0,
-        opt_state=opt.init(raw0),
-        best=Best(raw=raw0, step=meta["best_step"], summary=meta["best_summary"]),
-        step=meta["step"],
-        seed=meta["seed"],
-        history=meta["history"],
-        validation=meta["validation"],
-        search=meta["search"],
-    )
-    with open(path, "rb") as fh:
-        return eqx.tree_deserialise_leaves(fh, like)
+    try:
+        meta = json.loads(side.read_text(encoding="utf-8"))
+        like = TrainState(
+            raw=raw0,
+            opt_state=opt.init(raw0),
+            best=Best(raw=raw0, step=meta["best_step"], summary=meta["best_summary"]),
+            step=_count(meta["step"]),
+            seed=_count(meta["seed"]),
+            history=list(meta["history"]),
+            validation=list(meta["validation"]),
+            search=meta["search"],
+        )
+        with open(path, "rb") as fh:
+            return eqx.tree_deserialise_leaves(fh, like)
+    except Exception as e:  # a damaged file: JSON, keys, types or the arrays
+        reason = (str(e).splitlines() or [""])[0][:80] or type(e).__name__
+        raise UsageError(
+            f"--resume: the checkpoint in {str(out)!r} is damaged "
+            f"({type(e).__name__}: {reason}): start the run afresh in a new folder"
+        ) from None
+
+
+def _count(v) -> int:
+    """A step or seed of a checkpoint: an integer >= 0 (not a bool)."""
+    if isinstance(v, bool) or not isinstance(v, int) or v < 0 or v > 2**63 - 1:
+        raise ValueError(f"{v!r} is not an integer >= 0")
+    return v
 
 
 def _better(a: dict, b: dict) -> bool:

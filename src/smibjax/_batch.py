@@ -115,6 +115,9 @@ class Engine:
         adopt_legacy_solver(self, rtol, atol, max_steps)
         for name in ("t_end", "dt_save"):
             require_positive(name, getattr(self, name))
+        from ._closed_loop import require_start
+
+        require_start(self.plant, self.op)
 
     def key(self) -> tuple:
         """Everything that is compiled in (hashable)."""

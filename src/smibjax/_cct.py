@@ -40,6 +40,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import warnings
 from collections.abc import Callable
 
 import jax
@@ -55,7 +56,7 @@ from ._parameters import (
     ParameterError,
     Plant,
 )
-from ._validate import require_positive, require_samples
+from ._validate import require_memory, require_positive, require_samples
 from .controllers import as_controller
 
 __all__ = [
@@ -96,10 +97,20 @@ def _lanes(gain_sets: dict, names: list, adaptation: str):
     return ctrls[0], [c.tunable() for c in ctrls]
 
 
+class BudgetWarning(RuntimeWarning):
+    """Runs of a CCT computation spent the solver's step budget (counted as not
+    stable): its "none (unstable)" may say more about --max-steps than the plant."""
+
+
+def _scan_count(window: float, tol: float, scan_step: float) -> int:
+    """The number of scan durations `scan_durations` gives (without building them)."""
+    return max(1, min(math.ceil(window / scan_step - 1e-9), int(window / tol + 1e-9)))
+
+
 def scan_durations(window: float, tol: float, scan_step: float) -> np.ndarray:
     """The scan's clearing durations (s): `tol`, then k * window / K for k = 1..K with
     K = ceil(window / scan_step), capped so that the spacing is at least `tol`."""
-    k = max(1, min(math.ceil(window / scan_step - 1e-9), int(window / tol + 1e-9)))
+    k = _scan_count(window, tol, scan_step)
     grid = window * np.arange(1, k + 1) / k
     return np.concatenate([[tol], grid[grid > tol]])
 
@@ -265,9 +276,12 @@ def _verdicts(engine, template, gains, lam, fault_time, reclose_time, Xf, criter
         )
         g = jax.tree_util.tree_map(lambda a: a[jnp.asarray(lanes)], gains)
         out = engine.run(template, Scenarios(fault), lanes=g)
+        stable_at.exhausted[0] += int(np.sum(np.asarray(out.budget_exhausted)))
+        stable_at.exhausted[1] += n
         flags = out.synchronous if criterion == "synchronism" else out.metrics.stable
         return np.asarray(flags, dtype=bool)
 
+    stable_at.exhausted = [0, 0]  # runs that spent the step budget, runs
     return stable_at
 
 
@@ -401,7 +415,14 @@ def critical_clearing_times(
         fault_reactance,
         criterion,
     )
+    require_memory(
+        f"tol = {tol:g} with scan_step = {scan_step:g}",
+        len(lam) * _scan_count(window, tol, scan_step),
+        round(t_end / engine.dt_save) + 1,
+        "raise tol or scan_step, or give fewer fault locations",
+    )
     scan = scan_durations(window, tol, scan_step)
+    report_spent = stable_at.exhausted
     steps = max(1, math.ceil(math.log2(max(np.max(np.diff(scan)), tol) / tol)))
     report = progress or (lambda done, total: None)
     report(0, steps + 1)
@@ -410,6 +431,14 @@ def critical_clearing_times(
     lo, hi = _bisect(stable_at, active, lo, hi, tol, steps, report)
     report(steps + 1, steps + 1)
     status = _statuses(all_stable, active, islands)
+    if report_spent[0]:
+        warnings.warn(
+            f"{report_spent[0]} of {report_spent[1]} CCT run(s) spent the solver's "
+            f"step budget (max_steps = {max_steps}) before t_end and count as not "
+            "stable: raise --max-steps",
+            BudgetWarning,
+            stacklevel=2,
+        )
     return CCTResult(
         fault_location=locs,
         fault_time=fault_time,

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import equinox as eqx
 import jax.numpy as jnp
+import numpy as np
 from jaxtyping import Array, Bool, Float
 
 from ._network import (
@@ -27,6 +28,7 @@ from ._plant import (
     plant_vector_field,
     sincos,
 )
+from ._validate import concrete_value, require
 from .controllers import AbstractController, Gains, as_controller
 
 __all__ = [
@@ -112,6 +114,48 @@ def _b_max(stage: Stage, plant: Plant):
     Xs - X1 X2 (B + Bf), falls to X_MIN."""
     xs = plant.X1 + stage.X2
     return (xs - X_MIN) / (plant.X1 * stage.X2) - stage.Bf
+
+
+def require_start(plant: Plant, op: OperatingPoint) -> None:
+    """Raise `ParameterError` unless the starting point y(0) (the operating point on
+    the pre-fault network) lies inside the model's domain, as `healthy` tests it: the
+    transfer reactance Xs - X1 XL B0 > `X_MIN` (pu; a negative one gives a negative
+    terminal-voltage magnitude) and E'(0) = Pm_ref Xs / (V sin delta_e) > `E_MIN`
+    (pu). A run from outside would be "unstable at t = 0", a verdict on the inputs,
+    not on the controller. Skipped inside jit/vmap (values unknown)."""
+    vals = [
+        concrete_value(x)
+        for x in (plant.Xdp, plant.XT, plant.XL, plant.B0, plant.V, op.delta_e)
+    ] + [concrete_value(op.Pm_ref)]
+    if any(v is None for v in vals):
+        return
+    xdp, xt, xl, b0, v, de, pm = (np.asarray(x, dtype=float) for x in vals)
+    x1 = xdp + xt
+    xs = x1 + xl
+    with np.errstate(all="ignore"):
+        xeff = xs - x1 * xl * b0
+        e0 = pm * xs / (v * np.sin(de))
+    require(
+        xeff > X_MIN,
+        "Plant",
+        "B0",
+        b0,
+        "the starting point is outside the model's domain: the pre-fault transfer "
+        "reactance Xs - X1 XL B0 = {} pu must be > {} (B0 < {})",
+        xeff,
+        X_MIN,
+        (xs - X_MIN) / (x1 * xl),
+    )
+    require(
+        e0 > E_MIN,
+        "OperatingPoint",
+        "Pm_ref",
+        pm,
+        "the starting point is outside the model's domain: E'(0) = Pm_ref Xs / "
+        "(V sin delta_e) = {} pu must be > {}",
+        e0,
+        E_MIN,
+    )
 
 
 def initial_state(

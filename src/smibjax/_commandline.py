@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import argparse
 import datetime
+import os
 import re
 from pathlib import Path
 
@@ -48,6 +49,13 @@ class Parser(argparse.ArgumentParser):
 
     def add_argument(self, *names, **kw):
         self.flags.update(n for n in names if n.startswith("--"))
+        flag = next((n for n in names if n.startswith("--")), None)
+        if flag is not None and kw.get("action") in (None, "store", "append"):
+            kind = kw.get("type")
+            if kind is int:
+                kw["type"] = integer(flag, *INT_BOUNDS.get(flag, (-MAX_INT, MAX_INT)))
+            elif kind is None and flag in PATH_FLAGS:
+                kw["type"] = path_text(flag)
         return super().add_argument(*names, **kw)
 
     def error(self, message):
@@ -62,6 +70,70 @@ class Parser(argparse.ArgumentParser):
                 f"unrecognized arguments: {' '.join(extras)} (see `{prog} --help`)"
             )
         return ns
+
+
+MAX_INT = 10**9  # the largest |integer| of a flag without its own bounds
+
+
+def _cpus() -> int:
+    return os.cpu_count() or 1
+
+
+INT_BOUNDS = {
+    # flag: (lo, hi); hi may be a function (evaluated when the flag is parsed)
+    "--max-steps": (1, 10**8),  # smibjax._validate.MAX_STEPS
+    "--n": (1, 10**9),
+    "--chunk": (1, 10**9),
+    "--batch": (1, 10**9),
+    "--steps": (0, 10**9),
+    "--seed": (0, 2**32 - 1),
+    "--workers": (1, _cpus),
+}
+"""The bounds of the integer flags (any command): every other `type=int` flag is
+bounded by +-`MAX_INT`."""
+
+PATH_FLAGS = {"--out", "--plot", "--csv", "--gains", "--dist", "--config", "--init"}
+"""Flags naming a file or folder: an empty name is refused (`--out ''` would
+otherwise be the same as no --out)."""
+
+
+def integer(flag: str, lo: int, hi):
+    """An argparse type: an integer (decimal digits, no fraction, no exponent, not
+    longer than 30 characters) within [lo, hi] (`hi` may be a function). A refusal
+    is a `CLIError` naming the flag as the user wrote it (`--n 0 is not allowed`)."""
+
+    def parse(text: str) -> int:
+        t = text.strip()
+        top = hi() if callable(hi) else hi
+        if len(t) > 30 or not t.lstrip("+-").isdigit():
+            raise CLIError(
+                f"{flag} {text[:40]!r} is not allowed: must be an integer in "
+                f"[{lo}, {top}]"
+            )
+        v = int(t)
+        if not lo <= v <= top:
+            raise CLIError(
+                f"{flag} {v} is not allowed: must be an integer in [{lo}, {top}]"
+                + (" (the CPU count)" if callable(hi) else "")
+            )
+        return v
+
+    parse.__name__ = "integer"
+    return parse
+
+
+def path_text(flag: str):
+    """An argparse type: a file or folder name, not empty."""
+
+    def parse(text: str) -> str:
+        if not text.strip():
+            raise argparse.ArgumentTypeError(
+                f"{text!r} is not allowed: must be a file or folder name (empty)"
+            )
+        return text
+
+    parse.__name__ = "path"
+    return parse
 
 
 def one_line(error: Exception, flags: set[str] = frozenset()) -> str:

@@ -11,6 +11,7 @@ from pathlib import Path
 
 from ._gainsfile import GainsFile, check_complete, is_schema_table, legacy, validate
 from ._parameters import ParameterError
+from ._validate import MAX_DEPTH, check_tree, require_real
 from .controllers.synergetic import GAIN_NAMES
 
 try:  # Python >= 3.11
@@ -29,6 +30,7 @@ __all__ = [
     "write_npz",
     "file_mode",
     "check_new_file",
+    "check_writable",
     "read_gains_file",
     "write_gains_file",
 ]
@@ -51,12 +53,17 @@ def read_data(path: str | os.PathLike):
     if not p.is_file():
         raise ParameterError(f"file {str(p)!r} does not exist or is not a file")
     text = read_utf8(p)
+    kind = "toml" if p.suffix.lower() == ".toml" else "json"
     try:
-        if p.suffix.lower() == ".toml":
-            return tomllib.loads(text)
-        return json.loads(text)
+        data = tomllib.loads(text) if kind == "toml" else json.loads(text)
     except (ValueError, tomllib.TOMLDecodeError) as e:
-        raise ParameterError(f"file {str(p)!r} is not valid {p.suffix[1:]}: {e}") from e
+        reason = str(e).splitlines()[0] if str(e) else type(e).__name__
+        raise ParameterError(f"file {str(p)!r} is not valid {kind}: {reason}") from None
+    except RecursionError:
+        raise ParameterError(
+            f"file {str(p)!r} is not allowed: nested deeper than {MAX_DEPTH} levels"
+        ) from None
+    return check_tree(data, f"file {str(p)!r}")
 
 
 def read_table(path: str | os.PathLike) -> dict[str, float]:
@@ -71,7 +78,7 @@ def read_table(path: str | os.PathLike) -> dict[str, float]:
             raise ParameterError(
                 f"{k} = {v!r} in {str(p)!r} is not allowed: must be a number"
             )
-        out[str(k)] = float(v)
+        out[str(k)] = require_real(f"{k} in {str(p)!r}", v) if isinstance(v, int) else v
     return out
 
 
@@ -99,22 +106,66 @@ def read_gains(path: str | os.PathLike, complete: bool = False) -> dict[str, flo
     return table
 
 
-def atomic_write(path: str | os.PathLike, write: Callable[[str], None]) -> Path:
+_MUST_BE_NEW: set[str] = set()
+"""The user-named outputs that `check_new_file` found absent (without --force):
+`atomic_write` puts them in place without replacing a file that another process
+created meanwhile."""
+
+
+def _key(p: Path) -> str:
+    return os.path.abspath(p)
+
+
+def atomic_write(
+    path: str | os.PathLike, write: Callable[[str], None], new: bool | None = None
+) -> Path:
     """Call `write(tmp_path)` and move the result onto `path` in one rename, so a reader
-    never sees a half-written file and an existing file survives a crash."""
+    never sees a half-written file and an existing file survives a crash. With `new`
+    (default: when `check_new_file` checked `path` without force) the file is put in
+    place with a hard link, which fails if `path` exists by then: a file created by
+    another process while this one worked is never replaced (one-line error, the
+    finished output is removed)."""
     p = Path(path)
+    if new is None:
+        new = _key(p) in _MUST_BE_NEW
     p.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=f".{p.name}.", suffix=p.suffix, dir=p.parent)
     os.close(fd)
     try:
         write(tmp)
         os.chmod(tmp, file_mode())  # mkstemp creates 0600: honour the user's umask
-        os.replace(tmp, p)
+        if new:
+            _link_new(tmp, p)
+        else:
+            os.replace(tmp, p)
     except BaseException:
         if os.path.exists(tmp):
             os.unlink(tmp)
         raise
     return p
+
+
+def _link_new(tmp: str, p: Path) -> None:
+    """Move `tmp` onto `p` unless `p` exists (atomically: link, then unlink)."""
+    try:
+        os.link(tmp, p)
+    except FileExistsError:
+        raise ParameterError(
+            f"output {str(p)!r} is not allowed: it was created by another process "
+            "while this run worked, and is kept (choose another name, or add --force)"
+        ) from None
+    except OSError:  # a file system without hard links: O_EXCL, then a copy
+        try:
+            fd = os.open(p, os.O_WRONLY | os.O_CREAT | os.O_EXCL, file_mode())
+        except FileExistsError:
+            raise ParameterError(
+                f"output {str(p)!r} is not allowed: it was created by another "
+                "process while this run worked, and is kept (choose another name, "
+                "or add --force)"
+            ) from None
+        with open(tmp, "rb") as src, os.fdopen(fd, "wb") as dst:
+            dst.write(src.read())
+    os.unlink(tmp)
 
 
 def file_mode() -> int:
@@ -130,6 +181,8 @@ def check_new_file(
     """`path`, unless it names a folder, or an existing file and not `force` (a
     user-named output file is never replaced silently)."""
     p = Path(path)
+    if not str(path).strip():
+        raise ParameterError(f"{option} = '' is not allowed: must be a file name")
     if p.is_dir():
         raise ParameterError(
             f"{option} = {str(p)!r} is not allowed: must be a file name (it is a folder)"
@@ -139,7 +192,28 @@ def check_new_file(
             f"{option} = {str(p)!r} is not allowed: must be a new file (it exists; "
             "add --force to replace it)"
         )
+    check_writable(p.parent, option, str(p))
+    if not force:
+        _MUST_BE_NEW.add(_key(p))
     return p
+
+
+def check_writable(folder: Path, option: str, name: str) -> None:
+    """Raise `ParameterError` unless files can be created in `folder` (or in the
+    nearest existing folder above it, where it is still to be made): checked before
+    the run, not after it."""
+    here = Path(folder) if str(folder) else Path(".")
+    while not here.exists() and here != here.parent:
+        here = here.parent
+    if here.exists() and not here.is_dir():
+        raise ParameterError(
+            f"{option} = {name!r} is not allowed: {str(here)!r} is a file, not a folder"
+        )
+    if here.exists() and not os.access(here, os.W_OK | os.X_OK):
+        raise ParameterError(
+            f"{option} = {name!r} is not allowed: the folder {str(here)!r} is not "
+            "writable"
+        )
 
 
 def write_text(path: str | os.PathLike, text: str) -> Path:

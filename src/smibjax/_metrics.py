@@ -174,7 +174,24 @@ def metrics(
         E_min=jnp.min(traj.E),
         E_max=jnp.max(traj.E),
     )
-    return _not_reached(traj, m)
+    return _not_reached(traj, _lost(traj, m))
+
+
+def _lost(traj: Trajectory, m: Metrics) -> Metrics:
+    """A run that lost synchronism never settled: its settling times are inf ("not
+    settled"), whatever the samples held after the stop show (the last sample
+    reached may lie inside a band, and before the first sample every one is the
+    starting point). Its overshoot is the deviation measured up to the stop, and inf
+    where no sample after the fault was reached (the swing was never measured)."""
+    lost = traj.lost_sync
+    seen = jnp.any((traj.t >= traj.t_fault) & (traj.t < traj.t_stop))
+    inf = jnp.inf
+    return m._replace(
+        settling_delta=jnp.where(lost, inf, m.settling_delta),
+        settling_Vt=jnp.where(lost, inf, m.settling_Vt),
+        settling_omega=jnp.where(lost, inf, m.settling_omega),
+        overshoot=jnp.where(lost & ~seen, inf, m.overshoot),
+    )
 
 
 def _not_reached(traj: Trajectory, m: Metrics) -> Metrics:

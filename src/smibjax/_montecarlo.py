@@ -20,11 +20,17 @@ import jax.numpy as jnp
 import numpy as np
 
 from ._batch import Engine, Outcome, Scenarios
+from ._closed_loop import require_start
 from ._metrics import PHYSICS, physics_summary
 from ._options import SolverOptions, adopt_legacy_solver
 from ._parameters import InitialEstimates, OperatingPoint, ParameterError, Plant
 from ._scenarios import ScenarioDistribution, sample_scenarios
-from ._validate import require_count, require_positive, require_samples
+from ._validate import (
+    require_count,
+    require_positive,
+    require_samples,
+    require_solver,
+)
 from .controllers import CONTROLLERS, as_controller, parameter_set
 
 __all__ = [
@@ -132,6 +138,7 @@ class MonteCarloSpec:
         for name in ("t_end", "dt_save"):
             require_positive(name, getattr(self, name))
         require_samples(self.t_end, self.dt_save)
+        require_solver(self.rtol, self.atol, self.max_steps)
         if (
             isinstance(self.seed, bool)
             or not isinstance(self.seed, numbers.Integral)
@@ -186,12 +193,9 @@ class MonteCarloSpec:
         name = self.controller_name()
         CONTROLLERS[name].check_options(name, dict(self.options))
         params = parameter_set(name, f(self.gains))
-        return (
-            params,
-            Plant(**f(self.plant)),
-            OperatingPoint(**f(self.op)),
-            InitialEstimates(**f(self.init)),
-        )
+        plant, op = Plant(**f(self.plant)), OperatingPoint(**f(self.op))
+        require_start(plant, op)
+        return (params, plant, op, InitialEstimates(**f(self.init)))
 
     def to_dict(self) -> dict:
         """JSON-able (infinite values as the strings 'inf' and '-inf')."""

@@ -13,7 +13,7 @@ from typing import Literal
 
 import equinox as eqx
 
-from ._validate import ParameterError, require_count, require_positive
+from ._validate import ParameterError, require_count, require_positive, require_solver
 
 __all__ = ["SolverOptions", "SaveOptions", "METHODS"]
 
@@ -67,6 +67,7 @@ class SolverOptions(eqx.Module):
         for name in ("dt", "rtol", "atol"):
             require_positive(name, getattr(self, name))
         require_count("max_steps", self.max_steps)
+        require_solver(self.rtol, self.atol, self.max_steps)
 
 
 class SaveOptions(eqx.Module):

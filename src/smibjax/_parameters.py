@@ -22,7 +22,12 @@ import numpy as np
 from jaxtyping import Array, Float
 
 from ._names import PRESETS as _PRESETS
-from ._validate import ParameterError, is_concrete, require, require_finite
+from ._validate import (
+    ParameterError,
+    concrete_value,
+    require,
+    require_finite,
+)
 
 __all__ = [
     "Plant",
@@ -52,12 +57,10 @@ def _values(module: eqx.Module) -> SimpleNamespace | None:
     each eager jax.numpy comparison compiles a kernel on first use (~17 ms each, a
     quarter of a second per process before the first simulation)."""
     names = [f.name for f in dataclasses.fields(module)]
-    values = [getattr(module, n) for n in names]
-    if not is_concrete(*values):
+    values = [concrete_value(getattr(module, n)) for n in names]
+    if any(v is None for v in values):
         return None
-    return SimpleNamespace(
-        **{n: np.asarray(v) for n, v in zip(names, values, strict=True)}
-    )
+    return SimpleNamespace(**dict(zip(names, values, strict=True)))
 
 
 class Plant(eqx.Module):

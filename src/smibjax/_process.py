@@ -59,6 +59,16 @@ def enable_compilation_cache(path: str | None = None) -> str | None:
         path = os.environ.get(
             "SMIBJAX_CACHE_DIR", str(Path.home() / ".cache" / "smibjax" / "jax")
         )
+    if path and not _usable_folder(Path(path)):
+        import sys
+
+        print(
+            f"smibjax: warning: the compilation cache {str(path)!r} is not a "
+            "writable folder: running without it (set SMIBJAX_CACHE_DIR to a folder, "
+            "or to '' to turn the cache off)",
+            file=sys.stderr,
+        )
+        return None
     if path:
         jax.config.update("jax_compilation_cache_dir", str(path))
         jax.config.update(
@@ -84,6 +94,15 @@ def _min_compile_s() -> float:
             "number of seconds >= 0"
         )
     return value
+
+
+def _usable_folder(p: Path) -> bool:
+    """`p` is a writable folder, or can be made as one (the nearest existing path
+    above it is a writable folder)."""
+    here = p
+    while not here.exists() and here != here.parent:
+        here = here.parent
+    return here.is_dir() and os.access(here, os.W_OK | os.X_OK)
 
 
 def configure(

@@ -42,6 +42,7 @@ from ._closed_loop import (
     closed_loop_vector_field,
     healthy,
     initial_state,
+    require_start,
 )
 from ._fixed import solve_fixed
 from ._network import prefault_stage, stage_at
@@ -56,6 +57,7 @@ from ._parameters import (
 from ._plant import apply_limits, equilibrium_state, sincos, terminal_voltage
 from ._stepping import RigidSteps
 from ._validate import (
+    concrete_value,
     is_concrete,
     require_in_horizon,
     require_samples,
@@ -334,6 +336,22 @@ def _legacy_options(solver, legacy: dict) -> tuple[SolverOptions, SaveOptions]:
     return sopts, save
 
 
+def require_known_values(*trees) -> None:
+    """Raise `ParameterError` where a parameter whose value is known (concrete, or
+    the primal under `jax.grad` outside jit) is NaN: a NaN gain or plant value would
+    spend the whole step budget and return NaN silently (and its gradient too)."""
+    for tree in trees:
+        leaves = jax.tree_util.tree_leaves_with_path(eqx.filter(tree, eqx.is_array))
+        for path, leaf in leaves:
+            v = concrete_value(leaf)
+            if v is not None and v.dtype.kind == "f" and np.isnan(v).any():
+                name = jax.tree_util.keystr(path).lstrip(".") or "value"
+                raise ParameterError(
+                    f"{type(tree).__name__}.{name} = nan is not allowed: must be a "
+                    "number (checked before solving, also under jax.grad)"
+                )
+
+
 def simulate(
     gains: Gains | AbstractController | None = None,
     fault: Fault | None = None,
@@ -386,6 +404,8 @@ def simulate(
     op = OperatingPoint() if op is None else op
     init = InitialEstimates() if init is None else init
     controller.check_estimates(init)
+    require_known_values(controller, fault, plant, op, init)
+    require_start(plant, op)
     t_end, dt_save = save.t_end, save.dt_save
     require_samples(t_end, dt_save)
     if is_concrete(fault.t_fault, fault.t_clear):

@@ -3,6 +3,9 @@ table on stdout and (with --out) a JSON file and its plot."""
 
 from __future__ import annotations
 
+import sys
+import warnings
+
 from .grid import add_case_options
 from .options import (
     CLIError,
@@ -162,9 +165,16 @@ def progress_bar(desc: str = "cct scan + bisection"):
             bar = state["bar"] = tqdm(total=total, desc=desc)
         bar.update(done - bar.n)
         if done >= total:
-            bar.close()
-            state["closed"] = True
+            close()
 
+    def close() -> None:
+        """Close the bar (also when the work stopped early, on an error): an error
+        line then starts on a line of its own."""
+        if state.get("bar") is not None and not state.get("closed"):
+            state["bar"].close()
+        state["closed"] = True
+
+    update.close = close
     return update
 
 
@@ -187,11 +197,37 @@ def run(args) -> int:
                 "is written beside it as .png)"
             )
     sets, (plant, op, init) = _sets(args)
+    from .._cct import BudgetWarning
+    from .._parameters import PLANT_NAMES
     from .._process import announce_compile
 
-    with announce_compile("the CCT scan and bisection", "jit_run"):
-        res = run_grouped(args, sets, plant, op, init, progress_bar)
+    bars = []
+
+    def bar():  # every bar this command draws, closed before any line is printed
+        bars.append(progress_bar())
+        return bars[-1]
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", BudgetWarning)
+        try:
+            with announce_compile("the CCT scan and bisection", "jit_run"):
+                res = run_grouped(args, sets, plant, op, init, bar)
+        finally:
+            for b in bars:
+                b.close()
     res["context"] = args.contexts
+    # what the CCTs were computed for: each set's gains, the plant and the
+    # operating point (with every --set / gains-file override applied)
+    res["gains"] = {n: c.parameters() for n, c in sets.items()}
+    res["plant"] = {k: float(getattr(plant, k)) for k in PLANT_NAMES}
+    res["op"] = {"delta_e": float(op.delta_e), "Pm_ref": float(op.Pm_ref)}
+    res["init"] = {"th1": float(init.th1), "th2": float(init.th2)}
+    res["sets_given"] = list(args.set)
+    for w in caught:
+        if issubclass(w.category, BudgetWarning):
+            print(f"smibjax: warning: {w.message}", file=sys.stderr)
+        else:
+            warnings.showwarning(w.message, w.category, w.filename, w.lineno)
     print_cct(res)
     if out is not None:
         write_json(out, res)

@@ -18,6 +18,7 @@ if TYPE_CHECKING:
 
 import argparse
 import math
+import re
 import sys
 from pathlib import Path
 
@@ -205,6 +206,32 @@ def _limits_of(ctx) -> dict:
     from .._names import PRESETS
 
     return {**PRESETS[ctx.preset], **ctx.plant}
+
+
+def safe_label(label: str) -> str:
+    """A set's label as a folder name inside --out: no separators, never '.' or
+    '..' (`--gains ../gains.json` is labelled by its folder, '..', which would
+    write outside --out)."""
+    clean = re.sub(r"[^\w.+-]", "_", label)
+    return clean if clean.strip(".") else "gains"
+
+
+def _warn_dropped_sets(label: str, ctx: Context, sets: dict) -> None:
+    """One warning line per --set gain that a set's controller does not take (it
+    would otherwise be dropped silently)."""
+    from ..controllers import CONTROLLERS
+    from ..controllers.synergetic import GAIN_NAMES
+
+    names = set(CONTROLLERS[ctx.controller].parameter_kinds())
+    for name in sets:
+        if name in GAIN_NAMES and (
+            ctx.controller not in ("aftsc", "asc") or name not in names
+        ):
+            print(
+                f"smibjax: warning: --set {name} does not apply to set {label!r} "
+                f"(controller {ctx.controller} has no gain {name}): ignored there",
+                file=sys.stderr,
+            )
 
 
 def resolve_gain_set(
@@ -550,7 +577,9 @@ def run(args) -> int:
         for m in messages:
             print(f"smibjax: {m}", file=sys.stderr)
         warn_plant_sets(ctx, sets)
+        _warn_dropped_sets(label, ctx, sets)
         ctx = with_phi_layer(ctx, args.phi_layer)
+        label = safe_label(label)
         base, i = label, 2
         while label in gain_sets:
             if given:

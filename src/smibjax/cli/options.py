@@ -51,9 +51,26 @@ def positive(text: str) -> float:
     try:
         v = float(text)
     except ValueError:
-        raise argparse.ArgumentTypeError(f"invalid float value: {text!r}") from None
+        raise argparse.ArgumentTypeError(
+            f"{text[:40]!r} is not allowed: must be a number"
+        ) from None
     if not (math.isfinite(v) and v > 0):
         raise argparse.ArgumentTypeError(f"{text} is not allowed: must be > 0")
+    return v
+
+
+def tolerance(text: str) -> float:
+    """An argparse type: an adaptive solver tolerance in (0, 1e-2]
+    (`smibjax._validate.MAX_TOLERANCE`: looser, the step-size controller rather than
+    the plant decides the verdict)."""
+    from .._validate import MAX_TOLERANCE
+
+    v = positive(text)
+    if v > MAX_TOLERANCE:
+        raise argparse.ArgumentTypeError(
+            f"{text} is not allowed: must be in (0, {MAX_TOLERANCE:g}] (a looser "
+            "tolerance lets the solver, not the plant, decide the verdict)"
+        )
     return v
 
 
@@ -168,13 +185,13 @@ def solver_options(args) -> SolverOptions:
 def add_tolerances(p: Parser) -> None:
     p.add_argument(
         "--rtol",
-        type=positive,
+        type=tolerance,
         default=1e-6,
         help="adaptive solver relative tolerance (default 1e-6)",
     )
     p.add_argument(
         "--atol",
-        type=positive,
+        type=tolerance,
         default=1e-8,
         help="adaptive solver absolute tolerance (default 1e-8; 1e-6 takes ~1.75x "
         "fewer AFTSC steps, delta within ~6e-6 rad: benchmarks/README.md)",
@@ -269,11 +286,20 @@ def gains_context(path, controller=None, adaptation=None, preset=None, complete=
     one line each."""
     from .._files import read_gains_file
     from .._gainsfile import resolve
+    from .._parameters import ParameterError
 
-    gf = read_gains_file(path, complete=complete) if path else None
-    ctx, values, messages = resolve(
-        gf, controller, adaptation, preset, source=f"--gains {path}"
-    )
+    try:
+        gf = read_gains_file(path, complete=complete) if path else None
+        ctx, values, messages = resolve(
+            gf, controller, adaptation, preset, source=f"--gains {path}"
+        )
+    except ParameterError as e:
+        # the file's own key names the value, never a flag of the same name
+        text = str(e)
+        raise CLIError(
+            text if str(path) in text else f"{text} (in --gains {path})"
+        ) from None
+
     for m in messages:
         print(f"smibjax: {m}", file=sys.stderr)
     return ctx, values

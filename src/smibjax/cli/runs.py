@@ -26,6 +26,7 @@ from .._montecarlo import (
     summarize,
 )
 from .._parameters import ParameterError
+from .._validate import BYTES_PER_SAMPLE, check_tree, require_memory
 
 __all__ = ["run_montecarlo", "read_rows", "write_csv", "summary_markdown"]
 
@@ -139,7 +140,17 @@ def _check_resume(out: Path, spec: MonteCarloSpec) -> dict:
         raise ParameterError(
             f"--resume: {str(out)!r} holds no Monte Carlo run (no run.json)"
         )
-    saved = json.loads(manifest.read_text())
+    try:
+        saved = json.loads(manifest.read_text())
+        if not isinstance(saved, dict) or not isinstance(saved.get("spec", {}), dict):
+            raise ValueError("not a table with a spec table")
+        check_tree(saved, f"{str(manifest)!r}")
+    except (ValueError, RecursionError, UnicodeDecodeError) as e:
+        reason = str(e).splitlines()[0][:80] if str(e) else type(e).__name__
+        raise ParameterError(
+            f"--resume: {str(manifest)!r} is damaged ({reason}): start a new run "
+            "in a new --out folder"
+        ) from None
     # field by field, the solver's options as solver.NAME; a run written before 0.2
     # had rtol, atol, max_steps at the top level (`MonteCarloSpec.upgrade`)
     old = _flat(MonteCarloSpec.upgrade(saved.get("spec", {})))
@@ -154,6 +165,37 @@ def _check_resume(out: Path, spec: MonteCarloSpec) -> dict:
                 "options"
             )
     return saved
+
+
+def preflight(spec: MonteCarloSpec) -> None:
+    """Everything checked before the run folder is written: the memory of one chunk
+    and of the assembled rows (`require_memory`), the parameter sets, the starting
+    point, and the scenarios of the first chunk as drawn (with the plant at the
+    extremes of the drawn D and Pm)."""
+    samples = round(spec.t_end / spec.dt_save) + 1
+    require_memory(
+        f"--chunk {spec.chunk}",
+        max(spec.chunk, 2),
+        samples,
+        "lower --chunk (the rows do not depend on it)",
+    )
+    require_memory(
+        f"--n {spec.n}",
+        spec.n,
+        len(COLUMNS) / BYTES_PER_SAMPLE * 8,
+        "lower --n (the rows of every scenario are assembled at the end)",
+    )
+    from dataclasses import replace
+
+    from .._scenarios import sample_scenarios
+
+    params = spec.parameters()
+    dist = spec.distribution()
+    for d_, pm in zip(dist.D or (None,) * 2, dist.Pm or (None,) * 2, strict=True):
+        over = {k: v for k, v in (("D", d_), ("Pm", pm)) if v is not None}
+        if over:
+            replace(spec, plant={**spec.plant, **over})  # validates the plant
+    sample_scenarios(spec.seed, 0, min(spec.n, spec.chunk), dist, params[1])
 
 
 def run_montecarlo(
@@ -177,12 +219,14 @@ def run_montecarlo(
     out = Path(out)
     if resume:
         manifest = _check_resume(out, spec)
+        preflight(spec)
     else:
         if out.exists() and (not out.is_dir() or any(out.iterdir())):
             raise ParameterError(
                 f"--out {str(out)!r} exists and is not empty: choose a new folder or "
                 "add --resume to finish the run in it"
             )
+        preflight(spec)
         manifest = {"spec": spec.to_dict(), "complete": False}
         write_json(out / "run.json", manifest)
     todo = [k for k in range(spec.n_chunks) if not _chunk_ok(out, spec, k)]
