@@ -29,7 +29,6 @@ from ._validate import (
     require_count,
     require_positive,
     require_samples,
-    require_solver,
 )
 from .controllers import CONTROLLERS, as_controller, parameter_set
 
@@ -138,7 +137,6 @@ class MonteCarloSpec:
         for name in ("t_end", "dt_save"):
             require_positive(name, getattr(self, name))
         require_samples(self.t_end, self.dt_save)
-        require_solver(self.rtol, self.atol, self.max_steps)
         if (
             isinstance(self.seed, bool)
             or not isinstance(self.seed, numbers.Integral)
