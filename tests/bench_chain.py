@@ -61,6 +61,8 @@ TINY = {
     "stiff_solvers": ["--methods", "RK45", "Radau", "--t-end", "1.0"],
     "compile": ["--cases", "simulate", "--repeat", "1", "--t-end", "0.8"],
     "gradients": ["--batch", "1", "--t-end", "1.5", "--repeat", "1"],
+    # Kundur's four stabilizers: 2 training simulations per tuner, 2 held-out faults
+    "tuning_grid": ["--steps", "2", "--batch", "1", "--n", "2", "--popsize", "2"],
 }
 
 
@@ -69,7 +71,7 @@ TINY = {
 # chain's last scripts run; two chains leave less to run then.
 LANES = (
     ("throughput", "vs_scipy", "montecarlo", "cluster_scaling"),
-    ("gradients", "compile", "stiff_solvers"),
+    ("gradients", "compile", "stiff_solvers", "tuning_grid"),
 )
 
 

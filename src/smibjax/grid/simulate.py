@@ -93,9 +93,13 @@ def simulate_case(
     atol: float = 1e-8,
     max_steps: int = 100_000,
     dt0: float = 1e-3,
+    fixed_dt: float | None = None,
 ) -> GridTrajectory:
     """Integrate `case` from its operating point `op` (`operating_point`) through
-    `events` to `t_end` (s), saving every `dt_save` s."""
+    `events` to `t_end` (s), saving every `dt_save` s: Tsit5 with error control
+    (`rtol`, `atol`), or, with `fixed_dt` (s), explicit Euler at that constant step
+    and no error control (the prior art's fixed-step integration, for comparison;
+    switching times should then be multiples of `fixed_dt`)."""
     check_order(events)
     cfgs = stage_configs(op.grid, events)
     mats = stage_matrices(op.grid, cfgs)
@@ -111,12 +115,16 @@ def simulate_case(
         spread = angle_spread(case, delta, mats.gen_status[stage] * mask)
         return spread > jnp.pi
 
-    ctrl = dfx.PIDController(
-        rtol=rtol, atol=atol, jump_ts=t_sw if t_sw.shape[0] else None
-    )
+    if fixed_dt is None:
+        solver = dfx.Tsit5()
+        ctrl = dfx.PIDController(
+            rtol=rtol, atol=atol, jump_ts=t_sw if t_sw.shape[0] else None
+        )
+    else:
+        solver, ctrl, dt0 = dfx.Euler(), dfx.ConstantStepSize(), float(fixed_dt)
     sol = dfx.diffeqsolve(
         dfx.ODETerm(f),
-        dfx.Tsit5(),
+        solver,
         t0=0.0,
         t1=t_end,
         dt0=dt0,
