@@ -43,14 +43,16 @@ def started(request, tmp_path_factory):
         chain.stop()
 
 
-def finish(started, name):
-    """Wait for the script; its JSON results (the output is printed on failure)."""
+def finish(started, name, stem=None):
+    """Wait for the script; its JSON results `stem`.json (default: the script's
+    name; the output is printed on failure)."""
+    stem = stem or name
     rc, out = wait(started, name, TIMEOUT * len(TINY))
     text = (out / "log.txt").read_text()
     print(text)
     assert rc == 0, f"{name}.py exited with {rc}:\n{text[-4000:]}"
-    assert (out / f"{name}.png").is_file()
-    res = json.loads((out / f"{name}.json").read_text())
+    assert (out / f"{stem}.png").is_file()
+    res = json.loads((out / f"{stem}.json").read_text())
     for key in ("date", "machine", "cpus", "python", "jax", "smibjax", "config"):
         assert key in res
     return res
@@ -194,7 +196,7 @@ def _worst_em_damping(params: dict, load_factors) -> float:
 
 
 def test_tuning_grid_tiny(started):
-    res = finish(started, "tuning_grid")
+    res = finish(started, "tuning_grid", "tuning_grid_kundur")
     rows, timing = res["rows"], res["timing"]
     assert set(rows) == {
         "textbook PSS",
