@@ -178,6 +178,23 @@ def test_a_batch_equals_its_single_runs(smib_classical):
         )
 
 
+def test_fixed_step_euler_converges_at_first_order(smib_classical):
+    """`fixed_dt` integrates with explicit Euler (the benchmarks' prior-art baseline):
+    halving the step halves the error against a tight Tsit5 run."""
+    case, op = smib_classical
+    ev = (BusFault(bus=0, t_on=0.5, t_off=0.6),)
+    opts = dict(t_end=2.0, dt_save=0.05)
+    ref = simulate_jit(case, op, ev, **opts, rtol=1e-10, atol=1e-12)
+    errs = []
+    for dt in (0.004, 0.002):
+        tr = simulate_jit(case, op, ev, **opts, fixed_dt=dt)
+        assert bool(tr.stable)
+        assert int(tr.n_steps) == round(2.0 / dt)
+        errs.append(float(np.max(np.abs(np.asarray(tr.delta - ref.delta)))))
+    assert 1e-4 < errs[0] < 0.1
+    assert errs[0] / errs[1] == pytest.approx(2.0, rel=0.15)
+
+
 def test_a_line_fault_at_its_end_is_a_bus_fault(smib_classical):
     """A fault on the line at 1e-9 of its length from the machine's bus is a fault at
     that bus."""
