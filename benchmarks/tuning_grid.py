@@ -188,6 +188,12 @@ def cct_of(problem, raw, buses) -> dict:
     return {str(b): v for b, v in res["cct"].items()}
 
 
+def _rel(path) -> str:
+    """`path` relative to the repository when inside it."""
+    p = Path(path).resolve()
+    return str(p.relative_to(ROOT)) if p.is_relative_to(ROOT) else str(path)
+
+
 def _raw_of(space, values: dict) -> dict:
     return space.to_raw([float(values[n]) for n in space.names])
 
@@ -381,7 +387,7 @@ def main(argv=None) -> int:
         args.out,
         name,
         {
-            "config": args.config,
+            "config": _rel(args.config),
             "n_held_out": args.n,
             "held_out_seed": args.seed,
             "steps": cfg["steps"],
