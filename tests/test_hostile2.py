@@ -494,3 +494,64 @@ def test_extreme_plants_give_defined_metrics():
         if k in settling:
             assert np.isinf(v[lost]).all(), k
     assert lost.any() and (~lost & ~spent).any()  # both ends are exercised
+
+
+# 13. Error lines mixed into progress bars: every command's bars are closed (by the
+# shared `progress_bars`) before the error line is printed.
+def _error_on_its_own_line(err: str) -> str:
+    line = next(ln for ln in err.split("\n") if "smibjax: error: boom" in ln)
+    assert line == "smibjax: error: boom", repr(err)  # no '\r' bar text before it
+    return line
+
+
+def test_progress_bars_closes_every_bar_on_an_error(capsys):
+    import sys
+
+    from smibjax._commandline import progress_bars
+
+    with pytest.raises(RuntimeError), progress_bars() as make:
+        make(total=5, desc="first").update(1)
+        make(total=5, desc="second").update(2)
+        raise RuntimeError("boom")
+    print("smibjax: error: boom", file=sys.stderr)
+    _error_on_its_own_line(capsys.readouterr().err)
+
+
+def test_case_montecarlo_failing_mid_run_prints_the_error_on_its_own_line(
+    monkeypatch, capsys
+):
+    """`montecarlo --case`: the first chunk fails after the bar is drawn."""
+    import types
+
+    import smibjax.cli.grid as grid
+    import smibjax.grid.metrics as gm
+    import smibjax.grid.scenarios as gs
+    from smibjax.cli.options import CLIError
+
+    @jax.tree_util.register_pytree_node_class
+    class Events:  # what sample_events returns, reduced: indexable, a pytree
+        def __init__(self, *a):
+            self.bus, self.t_on, self.t_off = a
+
+        def __getitem__(self, i):
+            return self
+
+        def tree_flatten(self):
+            return (self.bus, self.t_on, self.t_off), None
+
+        @classmethod
+        def tree_unflatten(cls, aux, children):
+            return cls(*children)
+
+    def fail(ev):
+        raise CLIError("boom")
+
+    dist = types.SimpleNamespace(kind="bus")
+    case = types.SimpleNamespace(system=None)
+    monkeypatch.setattr(grid, "load", lambda a: (case, "op", "pf"))
+    monkeypatch.setattr(grid, "_grid_distribution", lambda c, a: (dist, 4, 2))
+    monkeypatch.setattr(grid, "_describe", lambda c, pf: "a case")
+    monkeypatch.setattr(gs, "sample_events", lambda *a: Events(*(np.zeros(4),) * 3))
+    monkeypatch.setattr(gm, "batch_metrics", lambda *a, **k: fail)
+    assert main(["montecarlo", "--case", "kundur", "--n", "4"]) == 2
+    _error_on_its_own_line(capsys.readouterr().err)

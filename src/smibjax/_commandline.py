@@ -5,12 +5,21 @@ library error becomes (naming the flag of the value), and a fresh run folder."""
 from __future__ import annotations
 
 import argparse
+import contextlib
 import datetime
 import os
 import re
+import sys
 from pathlib import Path
 
-__all__ = ["CLIError", "Parser", "DefaultsFormatter", "one_line", "fresh_out"]
+__all__ = [
+    "CLIError",
+    "Parser",
+    "DefaultsFormatter",
+    "one_line",
+    "fresh_out",
+    "progress_bars",
+]
 
 
 class CLIError(Exception):
@@ -158,3 +167,27 @@ def fresh_out(kind: str) -> Path:
     """A new run folder under runs/, named by kind and time."""
     stamp = datetime.datetime.now().strftime("%Y%m%d-%H%M%S")
     return Path("runs") / f"{kind}-{stamp}"
+
+
+@contextlib.contextmanager
+def progress_bars():
+    """A factory of tqdm progress bars (on stderr unless `file=` says otherwise) for
+    one command: `with progress_bars() as bar: b = bar(total=n, desc=...)`. Every bar
+    it made is closed when the block ends, also when an error ends it, so the error
+    (or warning) line printed next starts on a line of its own instead of after the
+    bar's last '\\r' drawing. Used by every command that draws a bar (montecarlo,
+    cct, compare, the `--case` commands, the tuner)."""
+    made = []
+
+    def bar(**kw):
+        from tqdm.auto import tqdm
+
+        kw.setdefault("file", sys.stderr)
+        made.append(tqdm(**kw))
+        return made[-1]
+
+    try:
+        yield bar
+    finally:
+        for b in made:
+            b.close()  # a second close (the bar's own) does nothing

@@ -150,10 +150,12 @@ def run_grouped(args, sets, plant, op, init, progress=None) -> dict:
     return results[0] if len(results) == 1 else merge_cct(results, list(sets))
 
 
-def progress_bar(desc: str = "cct scan + bisection"):
+def progress_bar(desc: str = "cct scan + bisection", make=None):
     """A `progress(done, total)` callback drawing a tqdm bar (closed at done ==
-    total)."""
-    from tqdm.auto import tqdm
+    total); `make`: the bar factory of `progress_bars()` (which closes the bar when
+    the command ends, also on an error), else tqdm itself."""
+    if make is None:
+        from tqdm.auto import tqdm as make
 
     state: dict = {}
 
@@ -162,7 +164,7 @@ def progress_bar(desc: str = "cct scan + bisection"):
             return
         bar = state.get("bar")
         if bar is None:
-            bar = state["bar"] = tqdm(total=total, desc=desc)
+            bar = state["bar"] = make(total=total, desc=desc)
         bar.update(done - bar.n)
         if done >= total:
             close()
@@ -198,23 +200,20 @@ def run(args) -> int:
             )
     sets, (plant, op, init) = _sets(args)
     from .._cct import BudgetWarning
+    from .._commandline import progress_bars
     from .._parameters import PLANT_NAMES
     from .._process import announce_compile
 
-    bars = []
-
-    def bar():  # every bar this command draws, closed before any line is printed
-        bars.append(progress_bar())
-        return bars[-1]
-
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", BudgetWarning)
-        try:
-            with announce_compile("the CCT scan and bisection", "jit_run"):
-                res = run_grouped(args, sets, plant, op, init, bar)
-        finally:
-            for b in bars:
-                b.close()
+        # every bar this command draws is closed before any line is printed
+        with (
+            progress_bars() as make,
+            announce_compile("the CCT scan and bisection", "jit_run"),
+        ):
+            res = run_grouped(
+                args, sets, plant, op, init, lambda: progress_bar(make=make)
+            )
     res["context"] = args.contexts
     # what the CCTs were computed for: each set's gains, the plant and the
     # operating point (with every --set / gains-file override applied)

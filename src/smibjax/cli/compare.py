@@ -641,11 +641,22 @@ def run(args) -> int:
             n: controller_of(gain_sets[n], adaptation, contexts[n]) for n in labels
         }
         args_group = argparse.Namespace(**{**vars(args), "adaptation": adaptation})
+        from .._commandline import progress_bars
         from .._process import announce_compile
 
-        with announce_compile("the CCT scan and bisection", "jit_run"):
+        with (
+            progress_bars() as make,
+            announce_compile("the CCT scan and bisection", "jit_run"),
+        ):
             results.append(
-                run_grouped(args_group, lanes, plant, op, init, progress_bar)
+                run_grouped(
+                    args_group,
+                    lanes,
+                    plant,
+                    op,
+                    init,
+                    lambda make=make: progress_bar(make=make),
+                )
             )
     res = merge_cct(results, list(gain_sets))
     write_compare(
