@@ -555,3 +555,38 @@ def test_case_montecarlo_failing_mid_run_prints_the_error_on_its_own_line(
     monkeypatch.setattr(gm, "batch_metrics", lambda *a, **k: fail)
     assert main(["montecarlo", "--case", "kundur", "--n", "4"]) == 2
     _error_on_its_own_line(capsys.readouterr().err)
+
+
+# 13. A read-only --out is refused before the run, also for root: /proc refuses the
+# creation of a file to every user, root included, where os.access("/proc", W_OK)
+# is true for root (the former check).
+@pytest.mark.skipif(not os.path.isdir("/proc/self"), reason="needs Linux /proc")
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["simulate", "--out", "/proc/x.npz"],
+        ["simulate", "--plot", "/proc/x.png"],
+        ["cct", "--out", "/proc/x.json"],
+        ["montecarlo", "--n", "2", "--out", "/proc/smibjax-mc"],
+        ["montecarlo", "--case", "smib-gencls", "--n", "2"]
+        + ["--out", "/proc/smibjax-mc"],
+        ["compare", "--out", "/proc/smibjax-cmp"],
+        ["compare", "--case", "smib-gencls", "--variant", "heavy:GENCLS.H=12"]
+        + ["--out", "/proc/smibjax-cmp"],
+        ["reproduce", "--out", "/proc/smibjax-rep"],
+        ["modes", "--case", "smib-gencls", "--csv", "/proc/x.csv"],
+    ],
+)
+def test_unwritable_out_refused_before_the_run_also_for_root(argv, capsys):
+    assert main(argv) == 2
+    line = _err(capsys)
+    assert "is not allowed: the folder '/proc' is not writable" in line, line
+
+
+@pytest.mark.skipif(not os.path.isdir("/proc/self"), reason="needs Linux /proc")
+def test_tuner_unwritable_out_refused_before_config_json(capsys):
+    from tuning.optimize import main as tune
+
+    assert tune(["--out", "/proc/smibjax-tune", "--steps", "1"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "\n" not in err and "'/proc' is not writable" in err, err

@@ -589,7 +589,7 @@ def main(args) -> int:
     """The grid branch of `tuning.optimize.main` (args already parsed)."""
     from smibjax import ParameterError
     from smibjax._commandline import CLIError, fresh_out
-    from smibjax._files import write_json
+    from smibjax._files import check_out_folder, write_json
 
     from .grid_problem import build_grid
     from .loop import CHECKPOINT
@@ -601,6 +601,7 @@ def main(args) -> int:
             raise ParameterError("--resume needs --out DIR (the run to continue)")
         build_grid(cfg)  # every check before anything is written
         out = Path(args.out) if args.out else fresh_out("tune")
+        check_out_folder(out)  # writable, before any work
         resume = start_mode(out, cfg, args.resume, CHECKPOINT)
         out.mkdir(parents=True, exist_ok=True)
         if not resume:

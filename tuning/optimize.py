@@ -100,7 +100,7 @@ def main(argv=None) -> int:
 
     configure()  # before anything imports equinox or JAX
     from smibjax import ParameterError
-    from smibjax._files import write_json
+    from smibjax._files import check_out_folder, write_json
 
     from .loop import CHECKPOINT, run
     from .outputs import finish
@@ -118,6 +118,7 @@ def main(argv=None) -> int:
         if args.resume and not args.out:
             raise UsageError("--resume needs --out DIR (the run to continue)")
         out = Path(args.out) if args.out else fresh_out("tune")
+        check_out_folder(out)  # writable, before any work
         resume = start_mode(out, cfg, args.resume, CHECKPOINT)  # tuning/resume.py
         build(cfg)  # validate gains, bounds, scenarios before any work
         out.mkdir(parents=True, exist_ok=True)

@@ -606,6 +606,9 @@ def run(args) -> int:
             file=sys.stderr,
         )
     out = Path(args.out) if args.out else fresh_out("compare")
+    from .._files import check_out_folder
+
+    check_out_folder(out)  # before any work
     if out.exists() and any(out.iterdir()) and not args.resume:
         raise CLIError(
             f"--out {str(out)!r} exists and is not empty: choose a new folder or add "

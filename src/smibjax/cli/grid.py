@@ -465,6 +465,10 @@ def run_montecarlo(args) -> int:
     from ..grid.metrics import GridMetrics
 
     out = Path(args.out) if args.out else None
+    if out is not None:
+        from .._files import check_out_folder
+
+        check_out_folder(out)  # before any work
     if (
         out
         and out.exists()
@@ -695,6 +699,9 @@ def run_compare(args) -> int:
 
     sets = case_sets(args)
     out = Path(args.out) if args.out else fresh_out("compare")
+    from .._files import check_out_folder
+
+    check_out_folder(out)  # before any work
     if out.exists() and any(out.iterdir()):
         raise CLIError(
             f"--out {str(out)!r} exists and is not empty: choose a new folder"

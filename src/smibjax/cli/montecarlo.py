@@ -131,6 +131,9 @@ def run(args) -> int:
     if args.resume and not args.out:
         raise CLIError("--resume needs --out DIR (the folder of the run to finish)")
     out = Path(args.out) if args.out else fresh_out("montecarlo")
+    from .._files import check_out_folder
+
+    check_out_folder(out)  # before any work
     title = (
         f"{describe(params)}; {args.n} scenarios, seed {args.seed}, "
         + plant_text(plant, args.preset)

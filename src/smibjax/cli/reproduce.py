@@ -152,6 +152,7 @@ def add_parser(sub) -> None:
 
 
 def run(args) -> int:
+    from .._files import check_out_folder
     from .options import CLIError
 
     out = Path(args.out)
@@ -162,5 +163,6 @@ def run(args) -> int:
             f"--out = {str(out)!r} is not allowed: must be a new or empty folder (it "
             "holds files; add --force to replace the ones reproduce writes)"
         )
+    check_out_folder(out)  # writable, before any work
     reproduce(out, preset=args.preset, t_end=args.t_end)
     return 0
