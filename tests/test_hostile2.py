@@ -590,3 +590,39 @@ def test_tuner_unwritable_out_refused_before_config_json(capsys):
     assert tune(["--out", "/proc/smibjax-tune", "--steps", "1"]) == 2
     err = capsys.readouterr().err.strip()
     assert "\n" not in err and "'/proc' is not writable" in err, err
+
+
+# 13. --workers has no upper bound: every command that takes it (the parser's
+# bound) and the library's dask_runner refuse more workers than CPUs.
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["montecarlo", "--n", "2"],
+        ["montecarlo", "--case", "smib-gencls", "--n", "2"],
+        ["compare"],
+        ["compare", "--case", "smib-gencls", "--variant", "heavy:GENCLS.H=12"],
+    ],
+)
+def test_workers_bounded_by_the_cpu_count_in_every_command(argv, capsys):
+    cpus = os.cpu_count() or 1
+    assert main([*argv, "--workers", str(cpus + 1)]) == 2
+    line = _err(capsys)
+    assert f"--workers {cpus + 1} is not allowed" in line and "CPU count" in line
+
+
+def test_dask_runner_workers_bounded_by_the_cpu_count(monkeypatch):
+    import types
+
+    from smibjax.cli import cluster
+
+    def started(*a, **k):
+        raise AssertionError("a cluster was started")
+
+    fake = types.SimpleNamespace(LocalCluster=started, Client=started)
+    monkeypatch.setattr(cluster, "_distributed", lambda: fake)
+    cpus = os.cpu_count() or 1
+    with (
+        pytest.raises(ParameterError, match=r"at most \d+ \(the CPU count"),
+        cluster.dask_runner(workers=cpus + 1),
+    ):
+        pass
