@@ -431,3 +431,43 @@ def test_every_summary_names_its_plant_and_limits(tmp_path, capsys):
     assert main([*argv, "--t-end", "3"]) == 0
     out = capsys.readouterr().out
     assert "realistic plant (u_f in [-5, 5], u_r in [-1, 1] pu)" in out
+
+
+def test_every_command_default_output_shares_one_root(tmp_path, monkeypatch):
+    """Issue 32 item 6: simulate/cct (`--out` alone), montecarlo, compare, reproduce
+    and the tuner name their default outputs under the one root runs/, one name per
+    command; an explicit --out is kept as given."""
+    import argparse
+
+    from smibjax._commandline import OUTPUT_ROOT
+    from smibjax.cli import _parser, cct, compare, montecarlo, reproduce, simulate
+    from tuning import optimize
+
+    monkeypatch.chdir(tmp_path)
+    parser = _parser()
+
+    def parse(argv):
+        return parser.parse_args(argv)
+
+    picked = {
+        "simulate": simulate.output(parse(["simulate", "--out"])),
+        "cct": cct.output(parse(["cct", "--out"])),
+        "montecarlo": montecarlo.output(parse(["montecarlo"])),
+        "compare": compare.output(parse(["compare"])),
+        "reproduce": reproduce.output(parse(["reproduce"])),
+        "tune": optimize.output(argparse.Namespace(out=None)),
+    }
+    assert OUTPUT_ROOT == type(OUTPUT_ROOT)("runs")
+    for command, path in picked.items():
+        assert path.parent == OUTPUT_ROOT, (command, path)
+        assert path.name.startswith(f"{command}-"), (command, path)
+    assert picked["simulate"].suffix == ".npz" and picked["cct"].suffix == ".json"
+    # a taken name is never reused: the next run of the same second gets a suffix
+    (tmp_path / picked["montecarlo"]).mkdir(parents=True)
+    again = montecarlo.output(parse(["montecarlo"]))
+    assert again != picked["montecarlo"] and again.parent == OUTPUT_ROOT
+    # nothing written without --out by simulate and cct; --out as given elsewhere
+    assert simulate.output(parse(["simulate"])) is None
+    assert cct.output(parse(["cct"])) is None
+    assert str(reproduce.output(parse(["reproduce", "--out", "x/y"]))) == "x/y"
+    assert str(optimize.output(argparse.Namespace(out="z"))) == "z"

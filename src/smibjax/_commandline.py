@@ -18,6 +18,9 @@ __all__ = [
     "DefaultsFormatter",
     "one_line",
     "fresh_out",
+    "out_path",
+    "OUTPUT_ROOT",
+    "UNNAMED",
     "progress_bars",
 ]
 
@@ -135,6 +138,8 @@ def path_text(flag: str):
     """An argparse type: a file or folder name, not empty."""
 
     def parse(text: str) -> str:
+        if text is UNNAMED:  # the flag alone (argparse passes `const` through here)
+            return text
         if not text.strip():
             raise argparse.ArgumentTypeError(
                 f"{text!r} is not allowed: must be a file or folder name (empty)"
@@ -163,10 +168,39 @@ def one_line(error: Exception, flags: set[str] = frozenset()) -> str:
     return head + sep + reason
 
 
-def fresh_out(kind: str) -> Path:
-    """A new run folder under runs/, named by kind and time."""
+OUTPUT_ROOT = Path("runs")
+"""The one folder (relative to the working directory) under which every command's
+default output goes, as `<command>-<YYYYmmdd-HHMMSS>` (`fresh_out`)."""
+
+
+class _Unnamed(str):
+    """The value of an output flag given without a name (`--out` alone)."""
+
+
+UNNAMED = _Unnamed("")
+"""`const` of the file flags that take an optional name (`simulate --out`, `cct
+--out`): the command picks a new name under `OUTPUT_ROOT` (`out_path`)."""
+
+
+def fresh_out(kind: str, suffix: str = "") -> Path:
+    """A new output under `OUTPUT_ROOT` named by the command and the time
+    (`runs/montecarlo-20261202-072700`, + `suffix`), with `-2`, `-3`, ... appended
+    while that name is taken."""
     stamp = datetime.datetime.now().strftime("%Y%m%d-%H%M%S")
-    return Path("runs") / f"{kind}-{stamp}"
+    path, i = OUTPUT_ROOT / f"{kind}-{stamp}{suffix}", 2
+    while path.exists():
+        path, i = OUTPUT_ROOT / f"{kind}-{stamp}-{i}{suffix}", i + 1
+    return path
+
+
+def out_path(given, command: str, suffix: str = "", default: bool = True):
+    """The output a command writes: `given` as is when named; a new name under
+    `OUTPUT_ROOT` (`fresh_out(command, suffix)`) when the flag came without a name
+    (`UNNAMED`), or was not given and the command writes by `default`; else None
+    (nothing written)."""
+    if given is UNNAMED or (given is None and default):
+        return fresh_out(command, suffix)
+    return None if given is None else Path(given)
 
 
 @contextlib.contextmanager

@@ -6,6 +6,7 @@ from __future__ import annotations
 import sys
 import warnings
 
+from .._commandline import UNNAMED, out_path
 from .grid import add_case_options
 from .options import (
     CLIError,
@@ -65,7 +66,14 @@ def add_parser(sub) -> None:
         "(default); synchronism: no loss of synchronism up to t_end (the industry "
         "definition)",
     )
-    c.add_argument("--out", metavar="FILE.json", help="write the CCTs (+ a .png plot)")
+    c.add_argument(
+        "--out",
+        metavar="FILE.json",
+        nargs="?",
+        const=UNNAMED,
+        help="write the CCTs (+ a .png plot); --out alone: a new file "
+        "runs/cct-<time>.json (default: nothing written)",
+    )
     add_force(c)
     add_case_options(c, events=False)
     c.add_argument(
@@ -180,10 +188,17 @@ def progress_bar(desc: str = "cct scan + bisection", make=None):
     return update
 
 
+def output(args):
+    """The --out file: as named, a new one under `OUTPUT_ROOT` for `--out` alone
+    (runs/cct-<time>.json), else None."""
+    return out_path(args.out, "cct", ".json", default=False)
+
+
 def run(args) -> int:
     from .._files import check_new_file, write_json
     from .plotting import plot_cct
 
+    args.out = output(args)
     if args.case:
         from .grid import run_cct
 

@@ -532,7 +532,9 @@ def add_parser(sub) -> None:
     add_tolerances(k)
     add_mc_options(k, 1000)
     add_cct_options(k, with_reactance=False)
-    k.add_argument("--out", metavar="DIR", help="output folder (default: runs/...)")
+    k.add_argument(
+        "--out", metavar="DIR", help="output folder (default: runs/compare-<time>)"
+    )
     add_case_options(k, events=False)
     k.add_argument(
         "--variant",
@@ -546,6 +548,14 @@ def add_parser(sub) -> None:
     k.set_defaults(func=run, flags=k.flags)
 
 
+def output(args) -> Path:
+    """The output folder: --out, else a new folder runs/compare-<time>
+    (`OUTPUT_ROOT`); also of `compare --case`."""
+    from .._commandline import out_path
+
+    return out_path(args.out, "compare")
+
+
 def run(args) -> int:
     from .cct import check_args, progress_bar, run_grouped
     from .montecarlo import run_folder, runner_of, spec_from_args
@@ -553,7 +563,6 @@ def run(args) -> int:
         CLIError,
         build_parameters,
         controller_of,
-        fresh_out,
         parse_sets,
         read_dist,
         warn_plant_sets,
@@ -605,7 +614,7 @@ def run(args) -> int:
             "compares on the tuner's distribution",
             file=sys.stderr,
         )
-    out = Path(args.out) if args.out else fresh_out("compare")
+    out = output(args)
     from .._files import check_out_folder
 
     check_out_folder(out)  # before any work

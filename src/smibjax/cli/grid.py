@@ -695,10 +695,10 @@ def run_compare(args) -> int:
     import argparse
 
     from .._files import write_json, write_text
-    from .options import fresh_out
+    from .compare import output
 
     sets = case_sets(args)
-    out = Path(args.out) if args.out else fresh_out("compare")
+    out = output(args)
     from .._files import check_out_folder
 
     check_out_folder(out)  # before any work
