@@ -1,6 +1,7 @@
 """The command-line contract: files, summary, and one-line errors without traceback."""
 
 import json
+import math
 import os
 import subprocess
 import sys
@@ -471,3 +472,38 @@ def test_every_command_default_output_shares_one_root(tmp_path, monkeypatch):
     assert cct.output(parse(["cct"])) is None
     assert str(reproduce.output(parse(["reproduce", "--out", "x/y"]))) == "x/y"
     assert str(optimize.output(argparse.Namespace(out="z"))) == "z"
+
+
+@pytest.mark.parametrize(
+    "argv, noted",
+    [
+        (["simulate", "--controller", "avr-pss"], True),
+        (["montecarlo", "--controller", "avr-pss"], True),
+        (["cct", "--controller", "avr-pss"], True),
+        (["simulate", "--controller", "avr-pss", "--preset", "realistic"], False),
+        (["simulate", "--controller", "avr-pss", "--set", "uf_max=5"], False),
+        (["simulate"], False),  # the paper's law on the paper's plant: its case
+        (["simulate", "--controller", "none"], False),
+    ],
+)
+def test_conventional_controller_on_the_unlimited_plant_is_noted(argv, noted, capsys):
+    """Issue 32 item 1: `simulate --controller avr-pss` runs on the paper plant (no
+    input limits; Vt up to 1.89 pu) without a word. The default plant stays (the
+    SMIB identity); one note line suggests --preset realistic."""
+    from smibjax.cli import _parser
+    from smibjax.cli.options import build_from_args
+
+    args = _parser().parse_args(argv)
+    if argv[0] == "cct":  # one build per --controller (repeatable)
+        from smibjax.cli.cct import _sets
+
+        plant = _sets(args)[1][0]
+    else:
+        plant = build_from_args(args, complete=True)[1]
+    err = capsys.readouterr().err
+    notes = [ln for ln in err.splitlines() if "--preset realistic" in ln]
+    assert len(notes) == (1 if noted else 0), err
+    if noted:
+        assert notes[0].startswith("smibjax: note: avr-pss runs on the paper plant")
+        assert "no input limits" in notes[0]
+        assert math.isinf(float(plant.uf_max))  # the default plant is unchanged

@@ -564,6 +564,7 @@ def run(args) -> int:
         build_parameters,
         controller_of,
         parse_sets,
+        plant_note,
         read_dist,
         warn_plant_sets,
         with_phi_layer,
@@ -606,6 +607,10 @@ def run(args) -> int:
         )[1:]
         for label, ctx in contexts.items()
     }
+    for label, ctx in contexts.items():  # a conventional set on the unlimited plant
+        note = plant_note(ctx.controller, ctx.preset, parts[label][0])
+        if note:
+            print(f"smibjax: {note} (set {label})", file=sys.stderr)
     dist = read_dist(args.dist)
     if args.dist is None and any(c is not None for c in stated.values()):
         print(
