@@ -514,7 +514,9 @@ def test_progress_bars_closes_every_bar_on_an_error(capsys):
         make(total=5, desc="second").update(2)
         raise RuntimeError("boom")
     print("smibjax: error: boom", file=sys.stderr)
-    _error_on_its_own_line(capsys.readouterr().err)
+    err = capsys.readouterr().err
+    assert "first:" in err and "second:" in err
+    _error_on_its_own_line(err)
 
 
 def test_case_montecarlo_failing_mid_run_prints_the_error_on_its_own_line(
@@ -554,7 +556,9 @@ def test_case_montecarlo_failing_mid_run_prints_the_error_on_its_own_line(
     monkeypatch.setattr(gs, "sample_events", lambda *a: Events(*(np.zeros(4),) * 3))
     monkeypatch.setattr(gm, "batch_metrics", lambda *a, **k: fail)
     assert main(["montecarlo", "--case", "kundur", "--n", "4"]) == 2
-    _error_on_its_own_line(capsys.readouterr().err)
+    err = capsys.readouterr().err
+    assert "scenarios:" in err  # the bar was drawn
+    _error_on_its_own_line(err)
 
 
 # 13. A read-only --out is refused before the run, also for root: /proc refuses the
@@ -626,3 +630,37 @@ def test_dask_runner_workers_bounded_by_the_cpu_count(monkeypatch):
         cluster.dask_runner(workers=cpus + 1),
     ):
         pass
+
+
+def test_tuner_failing_mid_run_prints_the_error_on_its_own_line(
+    monkeypatch, capsys, tmp_path
+):
+    """The tuner's bar (tuning/loop.py): a training step fails after the bar is
+    drawn; the error line printed next stands on its own line."""
+    import sys
+    import types
+
+    from tuning import loop
+
+    def fail(*a):
+        raise RuntimeError("boom")
+
+    space = types.SimpleNamespace(to_raw=lambda init: 0.0)
+    opt = types.SimpleNamespace(init=lambda raw: None)
+    summary = {"stable_fraction": 1.0, "settling_delta_mean": 1.0}
+    setup = types.SimpleNamespace(plant=None)
+    monkeypatch.setattr(loop, "build", lambda cfg: (None, space, setup, None, opt))
+    monkeypatch.setattr(loop.problem_module, "engine", lambda cfg, s: (None, None))
+    monkeypatch.setattr(loop, "make_step", lambda *a: fail)
+    monkeypatch.setattr(loop, "make_validation", lambda *a: lambda r: (summary, 0))
+    monkeypatch.setattr(loop, "_search", lambda cfg, sp, se, d, raw0, q: (raw0, []))
+    monkeypatch.setattr(loop, "draw_scenarios", lambda *a: None)
+    monkeypatch.setattr(loop, "continuation_scale", lambda cfg, step: 1.0)
+    cfg = {"validation": {"every": 1}, "steps": 3, "batch": 1, "seed": 0}
+    try:
+        loop.run(cfg, tmp_path)
+    except RuntimeError:
+        print("smibjax: error: boom", file=sys.stderr)  # as the entry point does
+    err = capsys.readouterr().err
+    assert "tuning:" in err  # the bar was drawn
+    _error_on_its_own_line(err)
