@@ -507,3 +507,35 @@ def test_conventional_controller_on_the_unlimited_plant_is_noted(argv, noted, ca
         assert notes[0].startswith("smibjax: note: avr-pss runs on the paper plant")
         assert "no input limits" in notes[0]
         assert math.isinf(float(plant.uf_max))  # the default plant is unchanged
+
+
+def test_cct_table_names_the_plant_and_its_limits(capsys):
+    """Issue 32 item 1: every summary names its plant and limits; the CCT table
+    said 'plant paper' without the limits."""
+    from smibjax._parameters import PLANT_NAMES, Plant
+    from smibjax.cli.cct import print_cct
+
+    for preset, limits in (
+        ("paper", "(no input limits)"),
+        ("realistic", "(u_f in [-5, 5], u_r in [-1, 1] pu)"),
+    ):
+        plant = Plant.preset(preset)
+        res = {
+            "fault_location": [0.5],
+            "fault_time": 0.5,
+            "reclose_time": 1.5,
+            "tol": 1e-3,
+            "window": 1.0,
+            "context": {
+                "avr-pss": {
+                    "controller": "avr-pss",
+                    "plant": {"preset": preset},
+                    "options": {},
+                }
+            },
+            "plant": {k: float(getattr(plant, k)) for k in PLANT_NAMES},
+            "sets": {"avr-pss": {"cct": [0.2], "status": ["ok"], "islands": [False]}},
+        }
+        print_cct(res)
+        out = capsys.readouterr().out
+        assert f"controller avr-pss, adaptation -, plant {preset} {limits}" in out

@@ -272,9 +272,14 @@ def print_cct(res: dict) -> None:
         f"{res['fault_time']:g} s, reclose {res['reclose_time']:g} s, t_end "
         f"{res.get('t_end', 10.0):g} s, tol {res['tol']:g} s:"
     )
+    limits = ""
+    if isinstance(res.get("plant"), dict):  # the plant the CCTs were computed on
+        from .report import plant_text
+
+        limits = " " + plant_text(res["plant"]).removeprefix("plant ")
     for name, ctx in res.get("context", {}).items():
         c, a, p = context_text(ctx)
-        print(f"  {name}: controller {c}, adaptation {a}, plant {p}")
+        print(f"  {name}: controller {c}, adaptation {a}, plant {p}{limits}")
     print(f"{'location':>10} " + " ".join(f"{n:>16}" for n in res["sets"]))
     for j, lam in enumerate(locs):
         cells = [_cell(res, r, j) for r in res["sets"].values()]
