@@ -387,7 +387,8 @@ def check_config(cfg: dict) -> None:
         for n in given:
             if n not in names:
                 raise ParameterError(
-                    f"unknown gain {n!r} in {key}: controller {cfg['controller']!r} "
+                    f"unknown gain {n!r} in {key} is not allowed: controller "
+                    f"{cfg['controller']!r} "
                     f"has {', '.join(names)}"
                 )
 
