@@ -33,7 +33,7 @@ from pathlib import Path
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 
-from smibjax._process import configure
+from smibjax import configure
 
 configure(cache=True)
 

@@ -1,6 +1,7 @@
 """The command-line contract: files, summary, and one-line errors without traceback."""
 
 import json
+import math
 import os
 import subprocess
 import sys
@@ -431,3 +432,110 @@ def test_every_summary_names_its_plant_and_limits(tmp_path, capsys):
     assert main([*argv, "--t-end", "3"]) == 0
     out = capsys.readouterr().out
     assert "realistic plant (u_f in [-5, 5], u_r in [-1, 1] pu)" in out
+
+
+def test_every_command_default_output_shares_one_root(tmp_path, monkeypatch):
+    """Issue 32 item 6: simulate/cct (`--out` alone), montecarlo, compare, reproduce
+    and the tuner name their default outputs under the one root runs/, one name per
+    command; an explicit --out is kept as given."""
+    import argparse
+
+    from smibjax._commandline import OUTPUT_ROOT
+    from smibjax.cli import _parser, cct, compare, montecarlo, reproduce, simulate
+    from tuning import optimize
+
+    monkeypatch.chdir(tmp_path)
+    parser = _parser()
+
+    def parse(argv):
+        return parser.parse_args(argv)
+
+    picked = {
+        "simulate": simulate.output(parse(["simulate", "--out"])),
+        "cct": cct.output(parse(["cct", "--out"])),
+        "montecarlo": montecarlo.output(parse(["montecarlo"])),
+        "compare": compare.output(parse(["compare"])),
+        "reproduce": reproduce.output(parse(["reproduce"])),
+        "tune": optimize.output(argparse.Namespace(out=None)),
+    }
+    assert OUTPUT_ROOT == type(OUTPUT_ROOT)("runs")
+    for command, path in picked.items():
+        assert path.parent == OUTPUT_ROOT, (command, path)
+        assert path.name.startswith(f"{command}-"), (command, path)
+    assert picked["simulate"].suffix == ".npz" and picked["cct"].suffix == ".json"
+    # a taken name is never reused: the next run of the same second gets a suffix
+    (tmp_path / picked["montecarlo"]).mkdir(parents=True)
+    again = montecarlo.output(parse(["montecarlo"]))
+    assert again != picked["montecarlo"] and again.parent == OUTPUT_ROOT
+    # nothing written without --out by simulate and cct; --out as given elsewhere
+    assert simulate.output(parse(["simulate"])) is None
+    assert cct.output(parse(["cct"])) is None
+    assert str(reproduce.output(parse(["reproduce", "--out", "x/y"]))) == "x/y"
+    assert str(optimize.output(argparse.Namespace(out="z"))) == "z"
+
+
+@pytest.mark.parametrize(
+    "argv, noted",
+    [
+        (["simulate", "--controller", "avr-pss"], True),
+        (["montecarlo", "--controller", "avr-pss"], True),
+        (["cct", "--controller", "avr-pss"], True),
+        (["simulate", "--controller", "avr-pss", "--preset", "realistic"], False),
+        (["simulate", "--controller", "avr-pss", "--set", "uf_max=5"], False),
+        (["simulate"], False),  # the paper's law on the paper's plant: its case
+        (["simulate", "--controller", "none"], False),
+    ],
+)
+def test_conventional_controller_on_the_unlimited_plant_is_noted(argv, noted, capsys):
+    """Issue 32 item 1: `simulate --controller avr-pss` runs on the paper plant (no
+    input limits; Vt up to 1.89 pu) without a word. The default plant stays (the
+    SMIB identity); one note line suggests --preset realistic."""
+    from smibjax.cli import _parser
+    from smibjax.cli.options import build_from_args
+
+    args = _parser().parse_args(argv)
+    if argv[0] == "cct":  # one build per --controller (repeatable)
+        from smibjax.cli.cct import _sets
+
+        plant = _sets(args)[1][0]
+    else:
+        plant = build_from_args(args, complete=True)[1]
+    err = capsys.readouterr().err
+    notes = [ln for ln in err.splitlines() if "--preset realistic" in ln]
+    assert len(notes) == (1 if noted else 0), err
+    if noted:
+        assert notes[0].startswith("smibjax: note: avr-pss runs on the paper plant")
+        assert "no input limits" in notes[0]
+        assert math.isinf(float(plant.uf_max))  # the default plant is unchanged
+
+
+def test_cct_table_names_the_plant_and_its_limits(capsys):
+    """Issue 32 item 1: every summary names its plant and limits; the CCT table
+    said 'plant paper' without the limits."""
+    from smibjax._parameters import PLANT_NAMES, Plant
+    from smibjax.cli.cct import print_cct
+
+    for preset, limits in (
+        ("paper", "(no input limits)"),
+        ("realistic", "(u_f in [-5, 5], u_r in [-1, 1] pu)"),
+    ):
+        plant = Plant.preset(preset)
+        res = {
+            "fault_location": [0.5],
+            "fault_time": 0.5,
+            "reclose_time": 1.5,
+            "tol": 1e-3,
+            "window": 1.0,
+            "context": {
+                "avr-pss": {
+                    "controller": "avr-pss",
+                    "plant": {"preset": preset},
+                    "options": {},
+                }
+            },
+            "plant": {k: float(getattr(plant, k)) for k in PLANT_NAMES},
+            "sets": {"avr-pss": {"cct": [0.2], "status": ["ok"], "islands": [False]}},
+        }
+        print_cct(res)
+        out = capsys.readouterr().out
+        assert f"controller avr-pss, adaptation -, plant {preset} {limits}" in out

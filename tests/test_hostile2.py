@@ -494,3 +494,173 @@ def test_extreme_plants_give_defined_metrics():
         if k in settling:
             assert np.isinf(v[lost]).all(), k
     assert lost.any() and (~lost & ~spent).any()  # both ends are exercised
+
+
+# 13. Error lines mixed into progress bars: every command's bars are closed (by the
+# shared `progress_bars`) before the error line is printed.
+def _error_on_its_own_line(err: str) -> str:
+    line = next(ln for ln in err.split("\n") if "smibjax: error: boom" in ln)
+    assert line == "smibjax: error: boom", repr(err)  # no '\r' bar text before it
+    return line
+
+
+def test_progress_bars_closes_every_bar_on_an_error(capsys):
+    import sys
+
+    from smibjax._commandline import progress_bars
+
+    with pytest.raises(RuntimeError), progress_bars() as make:
+        make(total=5, desc="first").update(1)
+        make(total=5, desc="second").update(2)
+        raise RuntimeError("boom")
+    print("smibjax: error: boom", file=sys.stderr)
+    err = capsys.readouterr().err
+    assert "first:" in err and "second:" in err
+    _error_on_its_own_line(err)
+
+
+def test_case_montecarlo_failing_mid_run_prints_the_error_on_its_own_line(
+    monkeypatch, capsys
+):
+    """`montecarlo --case`: the first chunk fails after the bar is drawn."""
+    import types
+
+    import smibjax.cli.grid as grid
+    import smibjax.grid.metrics as gm
+    import smibjax.grid.scenarios as gs
+    from smibjax.cli.options import CLIError
+
+    @jax.tree_util.register_pytree_node_class
+    class Events:  # what sample_events returns, reduced: indexable, a pytree
+        def __init__(self, *a):
+            self.bus, self.t_on, self.t_off = a
+
+        def __getitem__(self, i):
+            return self
+
+        def tree_flatten(self):
+            return (self.bus, self.t_on, self.t_off), None
+
+        @classmethod
+        def tree_unflatten(cls, aux, children):
+            return cls(*children)
+
+    def fail(ev):
+        raise CLIError("boom")
+
+    dist = types.SimpleNamespace(kind="bus")
+    case = types.SimpleNamespace(system=None)
+    monkeypatch.setattr(grid, "load", lambda a: (case, "op", "pf"))
+    monkeypatch.setattr(grid, "_grid_distribution", lambda c, a: (dist, 4, 2))
+    monkeypatch.setattr(grid, "_describe", lambda c, pf: "a case")
+    monkeypatch.setattr(gs, "sample_events", lambda *a: Events(*(np.zeros(4),) * 3))
+    monkeypatch.setattr(gm, "batch_metrics", lambda *a, **k: fail)
+    assert main(["montecarlo", "--case", "kundur", "--n", "4"]) == 2
+    err = capsys.readouterr().err
+    assert "scenarios:" in err  # the bar was drawn
+    _error_on_its_own_line(err)
+
+
+# 13. A read-only --out is refused before the run, also for root: /proc refuses the
+# creation of a file to every user, root included, where os.access("/proc", W_OK)
+# is true for root (the former check).
+@pytest.mark.skipif(not os.path.isdir("/proc/self"), reason="needs Linux /proc")
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["simulate", "--out", "/proc/x.npz"],
+        ["simulate", "--plot", "/proc/x.png"],
+        ["cct", "--out", "/proc/x.json"],
+        ["montecarlo", "--n", "2", "--out", "/proc/smibjax-mc"],
+        ["montecarlo", "--case", "smib-gencls", "--n", "2"]
+        + ["--out", "/proc/smibjax-mc"],
+        ["compare", "--out", "/proc/smibjax-cmp"],
+        ["compare", "--case", "smib-gencls", "--variant", "heavy:GENCLS.H=12"]
+        + ["--out", "/proc/smibjax-cmp"],
+        ["reproduce", "--out", "/proc/smibjax-rep"],
+        ["modes", "--case", "smib-gencls", "--csv", "/proc/x.csv"],
+    ],
+)
+def test_unwritable_out_refused_before_the_run_also_for_root(argv, capsys):
+    assert main(argv) == 2
+    line = _err(capsys)
+    assert "is not allowed: the folder '/proc' is not writable" in line, line
+
+
+@pytest.mark.skipif(not os.path.isdir("/proc/self"), reason="needs Linux /proc")
+def test_tuner_unwritable_out_refused_before_config_json(capsys):
+    from tuning.optimize import main as tune
+
+    assert tune(["--out", "/proc/smibjax-tune", "--steps", "1"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "\n" not in err and "'/proc' is not writable" in err, err
+
+
+# 13. --workers has no upper bound: every command that takes it (the parser's
+# bound) and the library's dask_runner refuse more workers than CPUs.
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["montecarlo", "--n", "2"],
+        ["montecarlo", "--case", "smib-gencls", "--n", "2"],
+        ["compare"],
+        ["compare", "--case", "smib-gencls", "--variant", "heavy:GENCLS.H=12"],
+    ],
+)
+def test_workers_bounded_by_the_cpu_count_in_every_command(argv, capsys):
+    cpus = os.cpu_count() or 1
+    assert main([*argv, "--workers", str(cpus + 1)]) == 2
+    line = _err(capsys)
+    assert f"--workers {cpus + 1} is not allowed" in line and "CPU count" in line
+
+
+def test_dask_runner_workers_bounded_by_the_cpu_count(monkeypatch):
+    import types
+
+    from smibjax.cli import cluster
+
+    def started(*a, **k):
+        raise AssertionError("a cluster was started")
+
+    fake = types.SimpleNamespace(LocalCluster=started, Client=started)
+    monkeypatch.setattr(cluster, "_distributed", lambda: fake)
+    cpus = os.cpu_count() or 1
+    with (
+        pytest.raises(ParameterError, match=r"at most \d+ \(the CPU count"),
+        cluster.dask_runner(workers=cpus + 1),
+    ):
+        pass
+
+
+def test_tuner_failing_mid_run_prints_the_error_on_its_own_line(
+    monkeypatch, capsys, tmp_path
+):
+    """The tuner's bar (tuning/loop.py): a training step fails after the bar is
+    drawn; the error line printed next stands on its own line."""
+    import sys
+    import types
+
+    from tuning import loop
+
+    def fail(*a):
+        raise RuntimeError("boom")
+
+    space = types.SimpleNamespace(to_raw=lambda init: 0.0)
+    opt = types.SimpleNamespace(init=lambda raw: None)
+    summary = {"stable_fraction": 1.0, "settling_delta_mean": 1.0}
+    setup = types.SimpleNamespace(plant=None)
+    monkeypatch.setattr(loop, "build", lambda cfg: (None, space, setup, None, opt))
+    monkeypatch.setattr(loop.problem_module, "engine", lambda cfg, s: (None, None))
+    monkeypatch.setattr(loop, "make_step", lambda *a: fail)
+    monkeypatch.setattr(loop, "make_validation", lambda *a: lambda r: (summary, 0))
+    monkeypatch.setattr(loop, "_search", lambda cfg, sp, se, d, raw0, q: (raw0, []))
+    monkeypatch.setattr(loop, "draw_scenarios", lambda *a: None)
+    monkeypatch.setattr(loop, "continuation_scale", lambda cfg, step: 1.0)
+    cfg = {"validation": {"every": 1}, "steps": 3, "batch": 1, "seed": 0}
+    try:
+        loop.run(cfg, tmp_path)
+    except RuntimeError:
+        print("smibjax: error: boom", file=sys.stderr)  # as the entry point does
+    err = capsys.readouterr().err
+    assert "tuning:" in err  # the bar was drawn
+    _error_on_its_own_line(err)

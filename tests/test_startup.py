@@ -204,7 +204,7 @@ def test_a_second_identical_run_hits_the_persistent_cache(tmp_path, argv):
         (["simulate"], ["--t-end T_END", "(default: 10.0)", "(default: 0.5)"]),
         (["montecarlo"], ["(default: 1000)"]),
         (["cct"], ["--tol", "(default: 0.001)"]),
-        (["reproduce"], ["(default: results/reproduce)", "(default: paper)"]),
+        (["reproduce"], ["runs/reproduce-<time>", "(default: paper)"]),
     ],
 )
 def test_help_shows_the_defaults(capsys, argv, shown):

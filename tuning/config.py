@@ -387,7 +387,8 @@ def check_config(cfg: dict) -> None:
         for n in given:
             if n not in names:
                 raise ParameterError(
-                    f"unknown gain {n!r} in {key}: controller {cfg['controller']!r} "
+                    f"unknown gain {n!r} in {key} is not allowed: controller "
+                    f"{cfg['controller']!r} "
                     f"has {', '.join(names)}"
                 )
 
@@ -410,6 +411,8 @@ def _check_meaning(cfg: dict) -> None:
     require_integer("train.max_steps", cfg["train"]["max_steps"], 1, 10**8)
     ranges = {}
     for k, v in cfg["scenarios"].items():
+        if k == "D" and v == []:  # the plant's own damping, not drawn
+            continue
         ranges[k] = _check_range(f"scenarios.{k}", v)
     if "t_fault" in ranges and "clear_duration" in ranges:
         latest = ranges["t_fault"][1] + ranges["clear_duration"][1]

@@ -588,11 +588,12 @@ def finish_grid(cfg, out: Path, problem, state, wall=None) -> dict:
 def main(args) -> int:
     """The grid branch of `tuning.optimize.main` (args already parsed)."""
     from smibjax import ParameterError
-    from smibjax._commandline import CLIError, fresh_out
-    from smibjax._files import write_json
+    from smibjax._commandline import CLIError
+    from smibjax._files import check_out_folder, write_json
 
     from .grid_problem import build_grid
     from .loop import CHECKPOINT
+    from .optimize import output
     from .resume import SessionClock, start_mode
 
     try:
@@ -600,7 +601,8 @@ def main(args) -> int:
         if args.resume and not args.out:
             raise ParameterError("--resume needs --out DIR (the run to continue)")
         build_grid(cfg)  # every check before anything is written
-        out = Path(args.out) if args.out else fresh_out("tune")
+        out = output(args)
+        check_out_folder(out)  # writable, before any work
         resume = start_mode(out, cfg, args.resume, CHECKPOINT)
         out.mkdir(parents=True, exist_ok=True)
         if not resume:

@@ -24,6 +24,7 @@ import numpy as np
 import optax
 
 from smibjax import TERM_NAMES
+from smibjax._commandline import progress_bars
 from smibjax._files import atomic_write, write_text
 
 from . import problem as problem_module
@@ -158,20 +159,17 @@ def _better(a: dict, b: dict) -> bool:
     return key(a) > key(b)
 
 
-def _progress(total, initial, quiet):
+def _progress(total, initial, quiet, make):
+    """The tuning bar (steps) from the factory `make` of `progress_bars()`; None
+    with `quiet`."""
     if quiet:
         return None
-    try:
-        from tqdm import tqdm
-    except ImportError:  # pragma: no cover
-        return None
-    return tqdm(
+    return make(
         total=total,
         initial=initial,
         desc="tuning",
         unit="step",
         dynamic_ncols=True,
-        file=sys.stderr,
     )
 
 
@@ -250,59 +248,60 @@ def run(
             save_checkpoint(out, state)
     state = dataclasses.replace(state, seed=seed)
     key = jax.random.PRNGKey(seed)
-    bar = _progress(steps, state.step, quiet)
-    done_here = 0
-    while state.step < steps:
-        step = state.step
-        scenarios = draw_scenarios(
-            jax.random.fold_in(key, step), batch, dist, setup.plant
-        )
-        scale = continuation_scale(cfg, step)
-        t0 = time.perf_counter()
-        raw, opt_state, info = step_fn(state.raw, state.opt_state, (scenarios, scale))
-        row = {
-            "step": step + 1,
-            "loss": float(info.loss),
-            "limit_scale": scale,
-            "train_stable_fraction": float(np.mean(np.asarray(info.stable))),
-            **{
-                f"term_{k}": float(np.mean(np.asarray(info.terms[k])))
-                for k in TERM_NAMES
-            },
-            "grad_norm": info.grad_norm,
-            "dropped": info.dropped,
-            "seconds": time.perf_counter() - t0,
-        }
-        state = dataclasses.replace(
-            state,
-            step=step + 1,
-            raw=raw,
-            opt_state=opt_state,
-            history=[*state.history, row],
-        )
-        if (step + 1) % every == 0 or step + 1 == steps:
-            v, _ = validate(raw)
-            best = state.best
-            if _better(v, best.summary):
-                best = Best(raw=raw, step=step + 1, summary=v)
+    with progress_bars() as make:  # the bar is closed also when a step fails
+        bar = _progress(steps, state.step, quiet, make)
+        done_here = 0
+        while state.step < steps:
+            step = state.step
+            scenarios = draw_scenarios(
+                jax.random.fold_in(key, step), batch, dist, setup.plant
+            )
+            scale = continuation_scale(cfg, step)
+            t0 = time.perf_counter()
+            raw, opt_state, info = step_fn(
+                state.raw, state.opt_state, (scenarios, scale)
+            )
+            row = {
+                "step": step + 1,
+                "loss": float(info.loss),
+                "limit_scale": scale,
+                "train_stable_fraction": float(np.mean(np.asarray(info.stable))),
+                **{
+                    f"term_{k}": float(np.mean(np.asarray(info.terms[k])))
+                    for k in TERM_NAMES
+                },
+                "grad_norm": info.grad_norm,
+                "dropped": info.dropped,
+                "seconds": time.perf_counter() - t0,
+            }
             state = dataclasses.replace(
                 state,
-                validation=[*state.validation, {"step": step + 1, **v}],
-                best=best,
+                step=step + 1,
+                raw=raw,
+                opt_state=opt_state,
+                history=[*state.history, row],
             )
-            save_checkpoint(out, state)
-            write_history(out, state.history)
-        if bar is not None:
-            last = state.validation[-1]
-            bar.set_postfix(
-                loss=f"{float(info.loss):.3f}",
-                val_stable=f"{last['stable_fraction']:.2f}",
-                val_ts=f"{last['settling_delta_mean']:.2f}s",
-            )
-            bar.update(1)
-        done_here += 1
-        if stop_after is not None and done_here >= stop_after:
-            break
-    if bar is not None:
-        bar.close()
+            if (step + 1) % every == 0 or step + 1 == steps:
+                v, _ = validate(raw)
+                best = state.best
+                if _better(v, best.summary):
+                    best = Best(raw=raw, step=step + 1, summary=v)
+                state = dataclasses.replace(
+                    state,
+                    validation=[*state.validation, {"step": step + 1, **v}],
+                    best=best,
+                )
+                save_checkpoint(out, state)
+                write_history(out, state.history)
+            if bar is not None:
+                last = state.validation[-1]
+                bar.set_postfix(
+                    loss=f"{float(info.loss):.3f}",
+                    val_stable=f"{last['stable_fraction']:.2f}",
+                    val_ts=f"{last['settling_delta_mean']:.2f}s",
+                )
+                bar.update(1)
+            done_here += 1
+            if stop_after is not None and done_here >= stop_after:
+                break
     return state

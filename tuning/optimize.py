@@ -21,7 +21,7 @@ import sys
 import time
 from pathlib import Path
 
-from smibjax._commandline import CLIError, Parser, fresh_out
+from smibjax._commandline import CLIError, Parser, out_path
 
 __all__ = ["main", "parse_args"]
 
@@ -59,7 +59,9 @@ def parse_args(argv):
     p.add_argument(
         "--seed", type=int, help="seed of the training batches" + dflt("seed")
     )
-    p.add_argument("--out", help="output folder (default: a new folder under runs/)")
+    p.add_argument(
+        "--out", help="output folder (default: a new folder runs/tune-<time>)"
+    )
     p.add_argument(
         "--resume",
         action="store_true",
@@ -90,6 +92,12 @@ def resolve_config(args) -> dict:
     return cfg
 
 
+def output(args) -> Path:
+    """The run folder: --out, else a new folder runs/tune-<time> (the output root
+    of every command, `smibjax._commandline.OUTPUT_ROOT`)."""
+    return out_path(args.out, "tune")
+
+
 def main(argv=None) -> int:
     try:  # parsed before JAX loads: --help and usage errors answer at once
         args = parse_args(argv)
@@ -100,7 +108,7 @@ def main(argv=None) -> int:
 
     configure()  # before anything imports equinox or JAX
     from smibjax import ParameterError
-    from smibjax._files import write_json
+    from smibjax._files import check_out_folder, write_json
 
     from .loop import CHECKPOINT, run
     from .outputs import finish
@@ -117,7 +125,8 @@ def main(argv=None) -> int:
         cfg = resolve_config(args)
         if args.resume and not args.out:
             raise UsageError("--resume needs --out DIR (the run to continue)")
-        out = Path(args.out) if args.out else fresh_out("tune")
+        out = output(args)
+        check_out_folder(out)  # writable, before any work
         resume = start_mode(out, cfg, args.resume, CHECKPOINT)  # tuning/resume.py
         build(cfg)  # validate gains, bounds, scenarios before any work
         out.mkdir(parents=True, exist_ok=True)

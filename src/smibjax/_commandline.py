@@ -5,12 +5,24 @@ library error becomes (naming the flag of the value), and a fresh run folder."""
 from __future__ import annotations
 
 import argparse
+import contextlib
 import datetime
 import os
 import re
+import sys
 from pathlib import Path
 
-__all__ = ["CLIError", "Parser", "DefaultsFormatter", "one_line", "fresh_out"]
+__all__ = [
+    "CLIError",
+    "Parser",
+    "DefaultsFormatter",
+    "one_line",
+    "fresh_out",
+    "out_path",
+    "OUTPUT_ROOT",
+    "UNNAMED",
+    "progress_bars",
+]
 
 
 class CLIError(Exception):
@@ -126,6 +138,8 @@ def path_text(flag: str):
     """An argparse type: a file or folder name, not empty."""
 
     def parse(text: str) -> str:
+        if text is UNNAMED:  # the flag alone (argparse passes `const` through here)
+            return text
         if not text.strip():
             raise argparse.ArgumentTypeError(
                 f"{text!r} is not allowed: must be a file or folder name (empty)"
@@ -154,7 +168,60 @@ def one_line(error: Exception, flags: set[str] = frozenset()) -> str:
     return head + sep + reason
 
 
-def fresh_out(kind: str) -> Path:
-    """A new run folder under runs/, named by kind and time."""
+OUTPUT_ROOT = Path("runs")
+"""The one folder (relative to the working directory) under which every command's
+default output goes, as `<command>-<YYYYmmdd-HHMMSS>` (`fresh_out`)."""
+
+
+class _Unnamed(str):
+    """The value of an output flag given without a name (`--out` alone)."""
+
+
+UNNAMED = _Unnamed("")
+"""`const` of the file flags that take an optional name (`simulate --out`, `cct
+--out`): the command picks a new name under `OUTPUT_ROOT` (`out_path`)."""
+
+
+def fresh_out(kind: str, suffix: str = "") -> Path:
+    """A new output under `OUTPUT_ROOT` named by the command and the time
+    (`runs/montecarlo-20261202-072700`, + `suffix`), with `-2`, `-3`, ... appended
+    while that name is taken."""
     stamp = datetime.datetime.now().strftime("%Y%m%d-%H%M%S")
-    return Path("runs") / f"{kind}-{stamp}"
+    path, i = OUTPUT_ROOT / f"{kind}-{stamp}{suffix}", 2
+    while path.exists():
+        path, i = OUTPUT_ROOT / f"{kind}-{stamp}-{i}{suffix}", i + 1
+    return path
+
+
+def out_path(given, command: str, suffix: str = "", default: bool = True):
+    """The output a command writes: `given` as is when named; a new name under
+    `OUTPUT_ROOT` (`fresh_out(command, suffix)`) when the flag came without a name
+    (`UNNAMED`), or was not given and the command writes by `default`; else None
+    (nothing written)."""
+    if given is UNNAMED or (given is None and default):
+        return fresh_out(command, suffix)
+    return None if given is None else Path(given)
+
+
+@contextlib.contextmanager
+def progress_bars():
+    """A factory of tqdm progress bars (on stderr unless `file=` says otherwise) for
+    one command: `with progress_bars() as bar: b = bar(total=n, desc=...)`. Every bar
+    it made is closed when the block ends, also when an error ends it, so the error
+    (or warning) line printed next starts on a line of its own instead of after the
+    bar's last '\\r' drawing. Used by every command that draws a bar (montecarlo,
+    cct, compare, the `--case` commands, the tuner)."""
+    made = []
+
+    def bar(**kw):
+        from tqdm.auto import tqdm
+
+        kw.setdefault("file", sys.stderr)
+        made.append(tqdm(**kw))
+        return made[-1]
+
+    try:
+        yield bar
+    finally:
+        for b in made:
+            b.close()  # a second close (the bar's own) does nothing

@@ -31,6 +31,7 @@ __all__ = [
     "file_mode",
     "check_new_file",
     "check_writable",
+    "check_out_folder",
     "read_gains_file",
     "write_gains_file",
 ]
@@ -201,7 +202,9 @@ def check_new_file(
 def check_writable(folder: Path, option: str, name: str) -> None:
     """Raise `ParameterError` unless files can be created in `folder` (or in the
     nearest existing folder above it, where it is still to be made): checked before
-    the run, not after it."""
+    the run, not after it, by creating and removing a probe file there (permission
+    bits say nothing for root, and a read-only mount or a pseudo file system such
+    as /proc refuses what `os.access` allows)."""
     here = Path(folder) if str(folder) else Path(".")
     while not here.exists() and here != here.parent:
         here = here.parent
@@ -209,11 +212,22 @@ def check_writable(folder: Path, option: str, name: str) -> None:
         raise ParameterError(
             f"{option} = {name!r} is not allowed: {str(here)!r} is a file, not a folder"
         )
-    if here.exists() and not os.access(here, os.W_OK | os.X_OK):
+    try:
+        with tempfile.NamedTemporaryFile(dir=here, prefix=".smibjax-probe-"):
+            pass  # removed on close
+    except OSError as e:
         raise ParameterError(
             f"{option} = {name!r} is not allowed: the folder {str(here)!r} is not "
-            "writable"
-        )
+            f"writable ({e.strerror or e})"
+        ) from None
+
+
+def check_out_folder(path: str | os.PathLike, option: str = "--out") -> Path:
+    """`path` as an output folder: it is a folder or can be made as one, and files
+    can be created there (`check_writable`); checked before any work."""
+    p = Path(path)
+    check_writable(p, option, str(p))
+    return p
 
 
 def write_text(path: str | os.PathLike, text: str) -> Path:

@@ -6,6 +6,7 @@ from __future__ import annotations
 import sys
 import warnings
 
+from .._commandline import UNNAMED, out_path
 from .grid import add_case_options
 from .options import (
     CLIError,
@@ -65,7 +66,14 @@ def add_parser(sub) -> None:
         "(default); synchronism: no loss of synchronism up to t_end (the industry "
         "definition)",
     )
-    c.add_argument("--out", metavar="FILE.json", help="write the CCTs (+ a .png plot)")
+    c.add_argument(
+        "--out",
+        metavar="FILE.json",
+        nargs="?",
+        const=UNNAMED,
+        help="write the CCTs (+ a .png plot); --out alone: a new file "
+        "runs/cct-<time>.json (default: nothing written)",
+    )
     add_force(c)
     add_case_options(c, events=False)
     c.add_argument(
@@ -150,10 +158,12 @@ def run_grouped(args, sets, plant, op, init, progress=None) -> dict:
     return results[0] if len(results) == 1 else merge_cct(results, list(sets))
 
 
-def progress_bar(desc: str = "cct scan + bisection"):
+def progress_bar(desc: str = "cct scan + bisection", make=None):
     """A `progress(done, total)` callback drawing a tqdm bar (closed at done ==
-    total)."""
-    from tqdm.auto import tqdm
+    total); `make`: the bar factory of `progress_bars()` (which closes the bar when
+    the command ends, also on an error), else tqdm itself."""
+    if make is None:
+        from tqdm.auto import tqdm as make
 
     state: dict = {}
 
@@ -162,7 +172,7 @@ def progress_bar(desc: str = "cct scan + bisection"):
             return
         bar = state.get("bar")
         if bar is None:
-            bar = state["bar"] = tqdm(total=total, desc=desc)
+            bar = state["bar"] = make(total=total, desc=desc)
         bar.update(done - bar.n)
         if done >= total:
             close()
@@ -178,10 +188,17 @@ def progress_bar(desc: str = "cct scan + bisection"):
     return update
 
 
+def output(args):
+    """The --out file: as named, a new one under `OUTPUT_ROOT` for `--out` alone
+    (runs/cct-<time>.json), else None."""
+    return out_path(args.out, "cct", ".json", default=False)
+
+
 def run(args) -> int:
     from .._files import check_new_file, write_json
     from .plotting import plot_cct
 
+    args.out = output(args)
     if args.case:
         from .grid import run_cct
 
@@ -198,23 +215,20 @@ def run(args) -> int:
             )
     sets, (plant, op, init) = _sets(args)
     from .._cct import BudgetWarning
+    from .._commandline import progress_bars
     from .._parameters import PLANT_NAMES
     from .._process import announce_compile
 
-    bars = []
-
-    def bar():  # every bar this command draws, closed before any line is printed
-        bars.append(progress_bar())
-        return bars[-1]
-
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", BudgetWarning)
-        try:
-            with announce_compile("the CCT scan and bisection", "jit_run"):
-                res = run_grouped(args, sets, plant, op, init, bar)
-        finally:
-            for b in bars:
-                b.close()
+        # every bar this command draws is closed before any line is printed
+        with (
+            progress_bars() as make,
+            announce_compile("the CCT scan and bisection", "jit_run"),
+        ):
+            res = run_grouped(
+                args, sets, plant, op, init, lambda: progress_bar(make=make)
+            )
     res["context"] = args.contexts
     # what the CCTs were computed for: each set's gains, the plant and the
     # operating point (with every --set / gains-file override applied)
@@ -258,9 +272,14 @@ def print_cct(res: dict) -> None:
         f"{res['fault_time']:g} s, reclose {res['reclose_time']:g} s, t_end "
         f"{res.get('t_end', 10.0):g} s, tol {res['tol']:g} s:"
     )
+    limits = ""
+    if isinstance(res.get("plant"), dict):  # the plant the CCTs were computed on
+        from .report import plant_text
+
+        limits = " " + plant_text(res["plant"]).removeprefix("plant ")
     for name, ctx in res.get("context", {}).items():
         c, a, p = context_text(ctx)
-        print(f"  {name}: controller {c}, adaptation {a}, plant {p}")
+        print(f"  {name}: controller {c}, adaptation {a}, plant {p}{limits}")
     print(f"{'location':>10} " + " ".join(f"{n:>16}" for n in res["sets"]))
     for j, lam in enumerate(locs):
         cells = [_cell(res, r, j) for r in res["sets"].values()]

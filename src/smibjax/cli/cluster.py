@@ -167,13 +167,22 @@ def dask_runner(
     scheduler: str | None = None, workers: int | None = None, *, retries: int = 3
 ) -> Iterator[DaskRunner]:
     """A runner on Dask: `workers=N` starts a local cluster of N single-threaded worker
-    processes (closed on exit); `scheduler=ADDRESS` connects to a running scheduler.
-    The runner's `client` is the `distributed.Client`."""
-    distributed = _distributed()
+    processes (closed on exit; 1 <= N <= the CPU count); `scheduler=ADDRESS`
+    connects to a running scheduler. The runner's `client` is the
+    `distributed.Client`."""
     if (scheduler is None) == (workers is None):
         raise ParameterError("give a Dask scheduler address or a number of workers")
-    if workers is not None and (isinstance(workers, bool) or workers < 1):
+    cpus = os.cpu_count() or 1
+    if workers is not None and (
+        not isinstance(workers, int) or isinstance(workers, bool) or workers < 1
+    ):
         raise ParameterError(f"workers = {workers!r} is not allowed: must be >= 1")
+    if workers is not None and workers > cpus:
+        raise ParameterError(
+            f"workers = {workers} is not allowed: must be at most {cpus} (the CPU "
+            "count: more single-threaded processes than cores only oversubscribe them)"
+        )
+    distributed = _distributed()
     with contextlib.ExitStack() as stack:
         if workers is not None:
             cluster = stack.enter_context(

@@ -532,7 +532,9 @@ def add_parser(sub) -> None:
     add_tolerances(k)
     add_mc_options(k, 1000)
     add_cct_options(k, with_reactance=False)
-    k.add_argument("--out", metavar="DIR", help="output folder (default: runs/...)")
+    k.add_argument(
+        "--out", metavar="DIR", help="output folder (default: runs/compare-<time>)"
+    )
     add_case_options(k, events=False)
     k.add_argument(
         "--variant",
@@ -546,6 +548,14 @@ def add_parser(sub) -> None:
     k.set_defaults(func=run, flags=k.flags)
 
 
+def output(args) -> Path:
+    """The output folder: --out, else a new folder runs/compare-<time>
+    (`OUTPUT_ROOT`); also of `compare --case`."""
+    from .._commandline import out_path
+
+    return out_path(args.out, "compare")
+
+
 def run(args) -> int:
     from .cct import check_args, progress_bar, run_grouped
     from .montecarlo import run_folder, runner_of, spec_from_args
@@ -553,8 +563,8 @@ def run(args) -> int:
         CLIError,
         build_parameters,
         controller_of,
-        fresh_out,
         parse_sets,
+        plant_note,
         read_dist,
         warn_plant_sets,
         with_phi_layer,
@@ -597,6 +607,10 @@ def run(args) -> int:
         )[1:]
         for label, ctx in contexts.items()
     }
+    for label, ctx in contexts.items():  # a conventional set on the unlimited plant
+        note = plant_note(ctx.controller, ctx.preset, parts[label][0])
+        if note:
+            print(f"smibjax: {note} (set {label})", file=sys.stderr)
     dist = read_dist(args.dist)
     if args.dist is None and any(c is not None for c in stated.values()):
         print(
@@ -605,7 +619,10 @@ def run(args) -> int:
             "compares on the tuner's distribution",
             file=sys.stderr,
         )
-    out = Path(args.out) if args.out else fresh_out("compare")
+    out = output(args)
+    from .._files import check_out_folder
+
+    check_out_folder(out)  # before any work
     if out.exists() and any(out.iterdir()) and not args.resume:
         raise CLIError(
             f"--out {str(out)!r} exists and is not empty: choose a new folder or add "
@@ -641,11 +658,22 @@ def run(args) -> int:
             n: controller_of(gain_sets[n], adaptation, contexts[n]) for n in labels
         }
         args_group = argparse.Namespace(**{**vars(args), "adaptation": adaptation})
+        from .._commandline import progress_bars
         from .._process import announce_compile
 
-        with announce_compile("the CCT scan and bisection", "jit_run"):
+        with (
+            progress_bars() as make,
+            announce_compile("the CCT scan and bisection", "jit_run"),
+        ):
             results.append(
-                run_grouped(args_group, lanes, plant, op, init, progress_bar)
+                run_grouped(
+                    args_group,
+                    lanes,
+                    plant,
+                    op,
+                    init,
+                    lambda make=make: progress_bar(make=make),
+                )
             )
     res = merge_cct(results, list(gain_sets))
     write_compare(

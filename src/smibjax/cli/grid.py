@@ -425,8 +425,8 @@ def grid_rows(case, op, dist, n, chunk, args, desc="scenarios"):
     one size (the last padded by repeating its final scenario), so one program is
     compiled: simulation and metrics are one compiled call per chunk."""
     import jax
-    from tqdm import tqdm
 
+    from .._commandline import progress_bars
     from .._process import cache_state
     from ..grid.metrics import GridMetrics, batch_metrics
     from ..grid.scenarios import sample_events
@@ -445,16 +445,16 @@ def grid_rows(case, op, dist, n, chunk, args, desc="scenarios"):
         f"compiling the batched case simulator (cache: {cache_state('jit_grid_batch_metrics')})",
         file=sys.stderr,
     )
-    bar = tqdm(total=n, desc=desc, unit="sc", file=sys.stderr)
-    for start in range(0, n, chunk):
-        k = min(chunk, n - start)
-        idx = np.minimum(np.arange(start, start + chunk), n - 1)
-        ev = jax.tree_util.tree_map(lambda a, idx=idx: np.asarray(a)[idx], events)
-        m = run(ev)
-        for f in GridMetrics.FIELDS:
-            rows[f] += np.asarray(getattr(m, f))[:k].tolist()
-        bar.update(k)
-    bar.close()
+    with progress_bars() as make:  # closed also when a chunk fails
+        bar = make(total=n, desc=desc, unit="sc")
+        for start in range(0, n, chunk):
+            k = min(chunk, n - start)
+            idx = np.minimum(np.arange(start, start + chunk), n - 1)
+            ev = jax.tree_util.tree_map(lambda a, idx=idx: np.asarray(a)[idx], events)
+            m = run(ev)
+            for f in GridMetrics.FIELDS:
+                rows[f] += np.asarray(getattr(m, f))[:k].tolist()
+            bar.update(k)
     return rows, meta
 
 
@@ -465,6 +465,10 @@ def run_montecarlo(args) -> int:
     from ..grid.metrics import GridMetrics
 
     out = Path(args.out) if args.out else None
+    if out is not None:
+        from .._files import check_out_folder
+
+        check_out_folder(out)  # before any work
     if (
         out
         and out.exists()
@@ -691,10 +695,13 @@ def run_compare(args) -> int:
     import argparse
 
     from .._files import write_json, write_text
-    from .options import fresh_out
+    from .compare import output
 
     sets = case_sets(args)
-    out = Path(args.out) if args.out else fresh_out("compare")
+    out = output(args)
+    from .._files import check_out_folder
+
+    check_out_folder(out)  # before any work
     if out.exists() and any(out.iterdir()):
         raise CLIError(
             f"--out {str(out)!r} exists and is not empty: choose a new folder"

@@ -12,13 +12,13 @@ import contextlib
 import sys
 from pathlib import Path
 
+from .._commandline import out_path
 from .grid import add_case_options, add_montecarlo_options
 from .options import (
     CLIError,
     add_common,
     add_tolerances,
     build_from_args,
-    fresh_out,
     parameter_values,
     positive,
     read_dist,
@@ -63,7 +63,12 @@ def add_parser(sub) -> None:
     add_common(m)
     add_tolerances(m)
     add_mc_options(m, 1000)
-    m.add_argument("--out", metavar="DIR", help="output folder (default: runs/...)")
+    m.add_argument(
+        "--out",
+        metavar="DIR",
+        help="output folder (default: a new folder runs/montecarlo-<time>; with "
+        "--case, nothing written)",
+    )
     add_case_options(m, events=False)
     add_montecarlo_options(m)
     m.set_defaults(func=run, flags=m.flags)
@@ -118,6 +123,12 @@ def run_folder(spec, out: Path, resume: bool, runner, title: str):
         ) from None
 
 
+def output(args) -> Path:
+    """The run folder: --out, else a new folder runs/montecarlo-<time>
+    (`OUTPUT_ROOT`)."""
+    return out_path(args.out, "montecarlo")
+
+
 def run(args) -> int:
     from ..controllers import describe
     from .report import plant_text
@@ -130,7 +141,10 @@ def run(args) -> int:
     spec = spec_from_args(args, params, plant, op, init, read_dist(args.dist))
     if args.resume and not args.out:
         raise CLIError("--resume needs --out DIR (the folder of the run to finish)")
-    out = Path(args.out) if args.out else fresh_out("montecarlo")
+    out = output(args)
+    from .._files import check_out_folder
+
+    check_out_folder(out)  # before any work
     title = (
         f"{describe(params)}; {args.n} scenarios, seed {args.seed}, "
         + plant_text(plant, args.preset)

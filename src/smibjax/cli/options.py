@@ -316,6 +316,28 @@ def warn_plant_sets(ctx: Context, sets: dict) -> None:
             )
 
 
+def plant_note(controller: str, preset: str, plant) -> str | None:
+    """The note for a conventional controller (`conventional`, e.g. avr-pss) run on
+    a `Plant` without input limits (the paper preset with no --set limit): its
+    field voltage and SVC command are then unbounded and its result unrealistic (Vt
+    up to 1.89 pu for avr-pss); None otherwise. The default plant is not changed:
+    the paper case's results stay as they are."""
+    from ..controllers import CONTROLLERS
+
+    cls = CONTROLLERS.get(controller)
+    if cls is None or not cls.conventional:
+        return None
+    limits = ("uf_min", "uf_max", "ur_min", "ur_max")
+    if any(math.isfinite(float(getattr(plant, k))) for k in limits):
+        return None
+    return (
+        f"note: {controller} runs on the {preset} plant, which has no input limits "
+        "(an unbounded field voltage and SVC command: the terminal voltage of a "
+        "conventional controller reaches 1.89 pu); --preset realistic runs it "
+        "within a real exciter's and SVC's limits"
+    )
+
+
 def build_from_args(args, complete=False, controller=None):
     """`build_parameters` for a command with --gains/--controller/--preset/
     --adaptation: the context resolved (`gains_context`) and written back into
@@ -342,7 +364,7 @@ def build_from_args(args, complete=False, controller=None):
     args.context = ctx
     if controller is None:
         args.controller = ctx.controller
-    return build_parameters(
+    built = build_parameters(
         ctx.controller,
         ctx.preset,
         None,
@@ -351,6 +373,10 @@ def build_from_args(args, complete=False, controller=None):
         gain_values=values,
         plant_values=ctx.plant,
     )
+    note = plant_note(ctx.controller, ctx.preset, built[1])
+    if note:
+        print(f"smibjax: {note}", file=sys.stderr)
+    return built
 
 
 def parameter_values(params) -> dict[str, float]:

@@ -139,7 +139,9 @@ def add_parser(sub) -> None:
     from .options import add_force, positive
 
     r = sub.add_parser("reproduce", help="the paper's section 4 case, figures + table")
-    r.add_argument("--out", default="results/reproduce", help="output folder")
+    r.add_argument(
+        "--out", help="output folder (default: a new folder runs/reproduce-<time>)"
+    )
     r.add_argument(
         "--preset",
         choices=["paper", "realistic"],
@@ -151,10 +153,19 @@ def add_parser(sub) -> None:
     r.set_defaults(func=run, flags=r.flags)
 
 
+def output(args) -> Path:
+    """The output folder: --out, else a new folder runs/reproduce-<time>
+    (`OUTPUT_ROOT`)."""
+    from .._commandline import out_path
+
+    return out_path(args.out, "reproduce")
+
+
 def run(args) -> int:
+    from .._files import check_out_folder
     from .options import CLIError
 
-    out = Path(args.out)
+    out = output(args)
     if out.exists() and not out.is_dir():
         raise CLIError(f"--out = {str(out)!r} is not allowed: must be a folder")
     if out.is_dir() and any(out.iterdir()) and not args.force:
@@ -162,5 +173,6 @@ def run(args) -> int:
             f"--out = {str(out)!r} is not allowed: must be a new or empty folder (it "
             "holds files; add --force to replace the ones reproduce writes)"
         )
+    check_out_folder(out)  # writable, before any work
     reproduce(out, preset=args.preset, t_end=args.t_end)
     return 0

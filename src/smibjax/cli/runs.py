@@ -214,7 +214,7 @@ def run_montecarlo(
     folder without `run.json` or with a different spec. Chunks already on disk are not
     recomputed; the final files are the same as those of an uninterrupted run.
     """
-    from tqdm.auto import tqdm
+    from .._commandline import progress_bars
 
     out = Path(out)
     if resume:
@@ -241,14 +241,15 @@ def run_montecarlo(
         )
     runner = runner or in_process_runner
     t0, computed = time.perf_counter(), 0
-    with tqdm(
-        total=spec.n,
-        initial=int(done_rows),
-        unit="scen",
-        disable=not progress,
-        desc="monte carlo",
-        smoothing=0.1,
-    ) as bar:
+    with progress_bars() as make:  # closed also when a chunk fails
+        bar = make(
+            total=spec.n,
+            initial=int(done_rows),
+            unit="scen",
+            disable=not progress,
+            desc="monte carlo",
+            smoothing=0.1,
+        )
         for k, rows in runner(spec, todo):
             write_npz(_chunk_path(out, k), rows)
             computed += rows["index"].size

@@ -7,6 +7,7 @@ import math
 import sys
 from pathlib import Path
 
+from .._commandline import UNNAMED, out_path
 from .grid import add_case_options
 from .options import (
     CLIError,
@@ -44,7 +45,14 @@ def add_parser(sub) -> None:
         default=0.01,
         help="sampling interval of the output (s), default 0.01",
     )
-    s.add_argument("--out", metavar="FILE.npz", help="write the trajectory")
+    s.add_argument(
+        "--out",
+        metavar="FILE.npz",
+        nargs="?",
+        const=UNNAMED,
+        help="write the trajectory; --out alone: a new file runs/simulate-<time>.npz "
+        "(default: nothing written)",
+    )
     s.add_argument(
         "--plot",
         metavar="FILE.png",
@@ -65,6 +73,7 @@ def run(args) -> int:
     from .plotting import plot_trajectory
     from .report import format_summary, metrics_dict
 
+    args.out = output(args)
     if args.case:
         from .grid import run_simulate
 
@@ -142,6 +151,12 @@ def _observe(traj):
     m, arrays = _OBSERVE(traj)
     m = jax.tree_util.tree_map(lambda x: jax.device_get(x), m)
     return m, {k: np.asarray(v) for k, v in arrays.items()}
+
+
+def output(args) -> Path | None:
+    """The --out file: as named, a new one under `OUTPUT_ROOT` for `--out` alone
+    (runs/simulate-<time>.npz), else None."""
+    return out_path(args.out, "simulate", ".npz", default=False)
 
 
 def _outputs(args) -> tuple[Path | None, Path | None]:

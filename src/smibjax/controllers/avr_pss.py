@@ -111,6 +111,7 @@ class AvrPss(AbstractController):
 
     n_internal = 5
     diagnostic_names = ("v_s", "Vt_err")
+    conventional = True  # designed for the ceilings of a real exciter and SVC
 
     def __check_init__(self):
         vals = [getattr(self, n) for n in _KINDS]

@@ -115,6 +115,11 @@ class AbstractController(eqx.Module):
     # True: the controller has an adaptation mode ("oracle" or "realizable",
     # `with_adaptation`) and its parameter set is a separate pytree (`parameter_set`).
     has_adaptation: ClassVar[bool] = False
+    # True: a conventional controller (exciter, PSS, regulators) designed for a plant
+    # whose inputs have ceilings; on the paper plant (no input limits) its commands
+    # are unrealistic (avr-pss: Vt up to 1.89 pu), so the commands note it
+    # (`smibjax.cli.options.plant_note`).
+    conventional: ClassVar[bool] = False
     # The option names a gains file or Monte Carlo spec may give (`check_options`).
     option_names: ClassVar[tuple[str, ...]] = ()
 
