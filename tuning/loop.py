@@ -227,7 +227,7 @@ def run(
     step_fn = make_step(setup, opt, train_step)
     validate = make_validation(cfg, problem)
     if not quiet:
-        from smibjax._process import say_compiling
+        from smibjax._commandline import say_compiling
 
         say_compiling("the training step and the validation", "jit_run", "jit_reduce")
     if resume:

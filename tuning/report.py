@@ -9,7 +9,7 @@ import jax
 import numpy as np
 
 import smibjax as sj
-from smibjax._figures import save_figure, subplots
+from smibjax._figures import clip_to_applied, mark_events, save_figure, subplots
 from smibjax._files import write_text
 from smibjax.controllers import CONTROLLERS
 
@@ -65,7 +65,6 @@ def plot_trajectories(out: Path, runs: dict, events: dict | None = None) -> None
     limits, dotted, clipped to the applied range with its peak stated), initial
     (dashed) against tuned (solid) gains; the fault, clearing and reclosing times
     (`events`: title -> (t_fault, t_clear, t_reclose)) marked."""
-    from smibjax.cli.plotting import mark_events
 
     events = events or {}
     n = len(runs)
@@ -87,22 +86,8 @@ def plot_trajectories(out: Path, runs: dict, events: dict | None = None) -> None
                     c = np.array(getattr(tr, key), dtype=float)
                     a = np.array(getattr(tr, applied), dtype=float)
                     c[cut], a[cut] = np.nan, np.nan
-                    lo, hi = np.nanmin(a), np.nanmax(a)
-                    pad = max(0.15 * (hi - lo), 1e-3)
                     ax.plot(t, c, ":", lw=0.9, color="gray", label="tuned, commanded")
-                    if np.nanmin(c) < lo - pad or np.nanmax(c) > hi + pad:
-                        ax.set_ylim(lo - pad, hi + pad)
-                        peak = c[np.nanargmax(np.abs(c))]
-                        ax.text(
-                            0.99,
-                            0.96,
-                            f"command clipped: peak {peak:.3g} pu",
-                            transform=ax.transAxes,
-                            ha="right",
-                            va="top",
-                            fontsize=7,
-                            color="dimgray",
-                        )
+                    clip_to_applied(ax, a, c)
         row[0].axhline(float(tr.delta_e), color="k", lw=0.6)
         row[0].set_title(title, fontsize=9, loc="left")
         for ax, ylabel in zip(

@@ -22,6 +22,8 @@ __all__ = [
     "OUTPUT_ROOT",
     "UNNAMED",
     "progress_bars",
+    "say_compiling",
+    "announce_compile",
 ]
 
 
@@ -225,3 +227,44 @@ def progress_bars():
     finally:
         for b in made:
             b.close()  # a second close (the bar's own) does nothing
+
+
+def say_compiling(what: str, *programs: str, file=None) -> None:
+    """Print 'compiling WHAT (cache: warm|cold|off)' on stderr: the line a long
+    command prints before its first compiled step, so that no wait is silent."""
+    from ._process import cache_state
+
+    print(
+        f"compiling {what} (cache: {cache_state(*programs)})",
+        file=file or sys.stderr,
+        flush=True,
+    )
+
+
+@contextlib.contextmanager
+def announce_compile(what: str, *programs: str, file=None):
+    """Within the block, print `say_compiling`'s line when JAX has traced the
+    first sizeable program (a trace of >= 0.05 s: after the inputs were checked,
+    so that a refused input stays one line, and before the compile or the cache
+    load). The cache state is read on entry."""
+    import jax.monitoring
+
+    from ._process import cache_state
+
+    state = cache_state(*programs)
+    said = []
+
+    def listener(event: str, duration: float, **kwargs) -> None:
+        if not said and event.endswith("jaxpr_trace_duration") and duration >= 0.05:
+            said.append(True)
+            print(
+                f"compiling {what} (cache: {state})",
+                file=file or sys.stderr,
+                flush=True,
+            )
+
+    jax.monitoring.register_event_duration_secs_listener(listener)
+    try:
+        yield
+    finally:
+        jax.monitoring.unregister_event_duration_listener(listener)

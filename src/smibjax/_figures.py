@@ -9,7 +9,14 @@ import os
 
 from ._files import atomic_write
 
-__all__ = ["subplots", "save_figure", "plot_formats", "check_plot_path"]
+__all__ = [
+    "subplots",
+    "save_figure",
+    "plot_formats",
+    "check_plot_path",
+    "mark_events",
+    "clip_to_applied",
+]
 
 
 def plot_formats() -> list[str]:
@@ -54,3 +61,43 @@ def save_figure(fig, path, dpi: int = 110) -> None:
     without one), at `dpi` dots per inch."""
     fmt = os.path.splitext(str(path))[1][1:].lower() or "png"
     atomic_write(path, lambda tmp: fig.savefig(tmp, dpi=dpi, format=fmt))
+
+
+_EVENTS = (("fault", "firebrick"), ("clear", "darkorange"), ("reclose", "seagreen"))
+
+
+def mark_events(ax, events, legend: bool = False) -> None:
+    """Dotted vertical lines at the fault, clearing and reclosing times (s);
+    `events` = (t_fault, t_clear, t_reclose), None: none to mark."""
+    if events is None:
+        return
+    for (name, color), t in zip(_EVENTS, events, strict=True):
+        ax.axvline(t, color=color, ls=":", lw=1.1, label=name if legend else None)
+
+
+def clip_to_applied(ax, applied, commanded) -> None:
+    """Where the commanded input (before the limits) leaves the applied input's
+    range by more than a margin, the y axis spans the applied input (with room)
+    and the commanded peak (pu) is stated on the panel. NaN samples are ignored."""
+    import numpy as np
+
+    a = np.asarray(applied, dtype=float)
+    c = np.asarray(commanded, dtype=float)
+    a, c = a[np.isfinite(a)], c[np.isfinite(c)]
+    if not (a.size and c.size):
+        return
+    lo, hi = float(a.min()), float(a.max())
+    pad = max(0.15 * (hi - lo), 0.05 * max(abs(lo), abs(hi)), 1e-3)
+    if c.min() < lo - pad or c.max() > hi + pad:
+        ax.set_ylim(lo - pad, hi + pad)
+        peak = float(c[np.argmax(np.abs(c))])
+        ax.text(
+            0.99,
+            0.96,
+            f"commanded clipped: peak {peak:.3g} pu",
+            transform=ax.transAxes,
+            ha="right",
+            va="top",
+            fontsize=7,
+            color="dimgray",
+        )

@@ -12,7 +12,6 @@ run before they load.
 
 from __future__ import annotations
 
-import contextlib
 import os
 import sys
 from pathlib import Path
@@ -22,8 +21,6 @@ __all__ = [
     "enable_compilation_cache",
     "use_host_devices",
     "cache_state",
-    "say_compiling",
-    "announce_compile",
 ]
 
 
@@ -155,40 +152,3 @@ def cache_state(*programs: str) -> str:
         return "cold"
     prefixes = tuple(f"{p}-" for p in programs)
     return "warm" if any(n.startswith(prefixes) for n in names) else "cold"
-
-
-def say_compiling(what: str, *programs: str, file=None) -> None:
-    """Print 'compiling WHAT (cache: warm|cold|off)' on stderr: the line a long
-    command prints before its first compiled step, so that no wait is silent."""
-    print(
-        f"compiling {what} (cache: {cache_state(*programs)})",
-        file=file or sys.stderr,
-        flush=True,
-    )
-
-
-@contextlib.contextmanager
-def announce_compile(what: str, *programs: str, file=None):
-    """Within the block, print `say_compiling`'s line when JAX has traced the
-    first sizeable program (a trace of >= 0.05 s: after the inputs were checked,
-    so that a refused input stays one line, and before the compile or the cache
-    load). The cache state is read on entry."""
-    import jax.monitoring
-
-    state = cache_state(*programs)
-    said = []
-
-    def listener(event: str, duration: float, **kwargs) -> None:
-        if not said and event.endswith("jaxpr_trace_duration") and duration >= 0.05:
-            said.append(True)
-            print(
-                f"compiling {what} (cache: {state})",
-                file=file or sys.stderr,
-                flush=True,
-            )
-
-    jax.monitoring.register_event_duration_secs_listener(listener)
-    try:
-        yield
-    finally:
-        jax.monitoring.unregister_event_duration_listener(listener)

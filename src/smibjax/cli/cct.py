@@ -215,9 +215,8 @@ def run(args) -> int:
             )
     sets, (plant, op, init) = _sets(args)
     from .._cct import BudgetWarning
-    from .._commandline import progress_bars
+    from .._commandline import announce_compile, progress_bars
     from .._parameters import PLANT_NAMES
-    from .._process import announce_compile
 
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", BudgetWarning)

@@ -658,8 +658,7 @@ def run(args) -> int:
             n: controller_of(gain_sets[n], adaptation, contexts[n]) for n in labels
         }
         args_group = argparse.Namespace(**{**vars(args), "adaptation": adaptation})
-        from .._commandline import progress_bars
-        from .._process import announce_compile
+        from .._commandline import announce_compile, progress_bars
 
         with (
             progress_bars() as make,

@@ -577,7 +577,7 @@ def run_cct(args) -> int:
         buses = _int_list(args.fault_buses) or [
             int(b) for b in np.asarray(case.system.buses.number)
         ]
-        from .._process import announce_compile
+        from .._commandline import announce_compile
 
         with announce_compile("the batched CCT bisection"):
             res = critical_clearing_times_grid(

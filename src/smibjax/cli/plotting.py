@@ -12,7 +12,7 @@ import os
 
 import numpy as np
 
-from .._figures import save_figure, subplots
+from .._figures import clip_to_applied, mark_events, save_figure, subplots
 
 __all__ = [
     "trajectory_arrays",
@@ -71,18 +71,6 @@ def _panels(ax, runs: dict[str, dict], key: str, col=None, ylabel="", true=None)
     ax.grid(alpha=0.3)
 
 
-_EVENTS = (("fault", "firebrick"), ("clear", "darkorange"), ("reclose", "seagreen"))
-
-
-def mark_events(ax, events, legend: bool = False) -> None:
-    """Dotted vertical lines at the fault, clearing and reclosing times (s);
-    `events` = (t_fault, t_clear, t_reclose), None: none to mark."""
-    if events is None:
-        return
-    for (name, color), t in zip(_EVENTS, events, strict=True):
-        ax.axvline(t, color=color, ls=":", lw=1.1, label=name if legend else None)
-
-
 def tame_scale(ax, values, ratio: float = 20.0) -> str | None:
     """Where one run dwarfs the rest (the largest |value| more than `ratio` times
     the 98th percentile of all |values|), a symmetric-log y axis, linear up to
@@ -116,25 +104,7 @@ def _clip_commanded(ax, t, applied, commanded, label) -> None:
     it with its peak stated."""
     ax.plot(t, applied, "-", lw=1.4, label=f"{label} applied")
     ax.plot(t, commanded, "--", lw=1.0, alpha=0.8, label=f"{label} commanded")
-    a = np.asarray(applied, dtype=float)
-    c = np.asarray(commanded, dtype=float)
-    a, c = a[np.isfinite(a)], c[np.isfinite(c)]
-    if a.size and c.size:
-        lo, hi = float(a.min()), float(a.max())
-        pad = max(0.15 * (hi - lo), 0.05 * max(abs(lo), abs(hi)), 1e-3)
-        if c.min() < lo - pad or c.max() > hi + pad:
-            ax.set_ylim(lo - pad, hi + pad)
-            peak = float(c[np.argmax(np.abs(c))])
-            ax.text(
-                0.99,
-                0.96,
-                f"commanded clipped: peak {peak:.3g} pu",
-                transform=ax.transAxes,
-                ha="right",
-                va="top",
-                fontsize=7,
-                color="dimgray",
-            )
+    clip_to_applied(ax, applied, commanded)
 
 
 def _note_lost(fig, runs):

@@ -58,11 +58,11 @@ def _write_csv(path: Path, a: dict) -> None:
 
 def reproduce(out: Path, preset: str = "paper", t_end: float = 10.0) -> dict:
     """Run the four cases, write figures/data/table under `out`; returns the metrics."""
+    from .._commandline import announce_compile
     from .._files import write_json, write_npz, write_text
     from .._metrics import metrics
     from .._options import SaveOptions
     from .._parameters import Fault, Plant
-    from .._process import announce_compile
     from .._simulate import simulate
     from ..controllers.synergetic import Gains
     from .plotting import plot_figure, trajectory_arrays

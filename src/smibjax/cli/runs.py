@@ -234,7 +234,7 @@ def run_montecarlo(
         spec.chunk_range(k)[1] - spec.chunk_range(k)[0] for k in todo
     )
     if progress and todo:
-        from .._process import say_compiling
+        from .._commandline import say_compiling
 
         say_compiling(
             "the batched simulator" + (" on the workers" if runner else ""), "jit_run"

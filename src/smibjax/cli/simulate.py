@@ -87,7 +87,7 @@ def run(args) -> int:
         lam=args.fault_location,
         Xf=args.fault_reactance,
     )
-    from .._process import announce_compile
+    from .._commandline import announce_compile
 
     with announce_compile("the simulation", "jit__simulate"):
         traj = simulate(
