@@ -42,32 +42,26 @@ from ._closed_loop import (
     closed_loop_vector_field,
     healthy,
     initial_state,
-    require_start,
 )
 from ._fixed import solve_fixed
+from ._inputs import DEFAULT_DELTA_BAND as DEFAULT_DELTA_BAND
+from ._inputs import require_known_values as require_known_values
+from ._inputs import simulate_inputs
 from ._network import prefault_stage, stage_at
 from ._options import DEFAULT_MAX_STEPS, SaveOptions, SolverOptions
 from ._parameters import (
     Fault,
     InitialEstimates,
     OperatingPoint,
-    ParameterError,
     Plant,
 )
 from ._plant import apply_limits, equilibrium_state, sincos, terminal_voltage
 from ._stepping import RigidSteps
-from ._validate import (
-    concrete_value,
-    is_concrete,
-    require_in_horizon,
-    require_samples,
-    require_x64,
-)
-from .controllers import AbstractController, Gains, as_controller
+from ._validate import require_x64
+from .controllers import AbstractController, Gains
 
 __all__ = ["Trajectory", "simulate", "is_stable", "DEFAULT_DELTA_BAND"]
 
-DEFAULT_DELTA_BAND = 0.01  # rad, docs/model.md section 4
 
 Series = Float[Array, "*batch n"]
 Scalar = Float[Array, "*batch"]
@@ -182,20 +176,6 @@ def _solve_adaptive(loop, y0, ts, jumps, solver: SolverOptions):
         sol.stats["num_accepted_steps"],
         sol.stats["num_rejected_steps"],
     )
-
-
-def _resolve_controller(gains, adaptation) -> AbstractController:
-    """The controller to simulate: `gains` as a controller (`Gains`: the paper's law,
-    oracle unless `adaptation` says otherwise), with alpha = 1 compiled as a constant
-    where it is known to be 1 (ASC, concrete gains: spow(y, 1) is y)."""
-    if adaptation not in (None, "oracle", "realizable"):
-        raise ParameterError(
-            f"adaptation = {adaptation!r} is not allowed: must be 'oracle' or "
-            "'realizable'"
-        )
-    gains = Gains() if gains is None else gains
-    controller = as_controller(gains).with_adaptation(adaptation)
-    return controller.specialized()
 
 
 @eqx.filter_jit
@@ -336,22 +316,6 @@ def _legacy_options(solver, legacy: dict) -> tuple[SolverOptions, SaveOptions]:
     return sopts, save
 
 
-def require_known_values(*trees) -> None:
-    """Raise `ParameterError` where a parameter whose value is known (concrete, or
-    the primal under `jax.grad` outside jit) is NaN: a NaN gain or plant value would
-    spend the whole step budget and return NaN silently (and its gradient too)."""
-    for tree in trees:
-        leaves = jax.tree_util.tree_leaves_with_path(eqx.filter(tree, eqx.is_array))
-        for path, leaf in leaves:
-            v = concrete_value(leaf)
-            if v is not None and v.dtype.kind == "f" and np.isnan(v).any():
-                name = jax.tree_util.keystr(path).lstrip(".") or "value"
-                raise ParameterError(
-                    f"{type(tree).__name__}.{name} = nan is not allowed: must be a "
-                    "number (checked before solving, also under jax.grad)"
-                )
-
-
 def simulate(
     gains: Gains | AbstractController | None = None,
     fault: Fault | None = None,
@@ -396,20 +360,10 @@ def simulate(
     require_x64()
     if legacy or isinstance(solver, str):
         solver, save = _legacy_options(solver, legacy)
-    solver = SolverOptions() if solver is None else solver
-    save = SaveOptions() if save is None else save
-    controller = _resolve_controller(gains, adaptation)
-    fault = Fault() if fault is None else fault
-    plant = Plant() if plant is None else plant
-    op = OperatingPoint() if op is None else op
-    init = InitialEstimates() if init is None else init
-    controller.check_estimates(init)
-    require_known_values(controller, fault, plant, op, init)
-    require_start(plant, op)
+    controller, fault, plant, op, init, solver, save = simulate_inputs(
+        gains, fault, plant, op, init, adaptation, solver, save
+    )
     t_end, dt_save = save.t_end, save.dt_save
-    require_samples(t_end, dt_save)
-    if is_concrete(fault.t_fault, fault.t_clear):
-        require_in_horizon(fault.t_fault, fault.t_clear, t_end)
     return _simulate(
         controller,
         fault,

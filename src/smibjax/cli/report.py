@@ -3,9 +3,12 @@
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
-from .._metrics import Metrics
 from ..controllers import describe
+
+if TYPE_CHECKING:  # (the class lives beside the solver: diffrax)
+    from .._metrics import Metrics
 
 __all__ = ["metrics_dict", "format_summary", "markdown_table", "plant_text"]
 

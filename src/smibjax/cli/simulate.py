@@ -66,10 +66,10 @@ def add_parser(sub) -> None:
 def run(args) -> int:
     import numpy as np
 
+    from .. import _exported
     from .._files import write_npz
     from .._options import SaveOptions
     from .._parameters import Fault
-    from .._simulate import simulate
     from .plotting import plot_trajectory
     from .report import format_summary, metrics_dict
 
@@ -89,18 +89,18 @@ def run(args) -> int:
     )
     from .._commandline import announce_compile
 
-    with announce_compile("the simulation", "jit__simulate"):
-        traj = simulate(
+    with announce_compile("the simulation", *PROGRAMS):
+        # a second identical run calls the stored programs: no trace, no diffrax
+        traj, m, arrays = _exported.run(
             controller_of(gains, args.adaptation, args.context),
             fault,
             plant,
-            op=op,
-            init=init,
-            solver=solver_options(args),
-            save=SaveOptions(args.t_end, args.dt_save),
+            op,
+            init,
+            solver_options(args),
+            SaveOptions(args.t_end, args.dt_save),
         )
     _warn_dt_save(args)
-    m, arrays = _observe(traj)
     print(format_summary(gains, fault, plant, traj, m, args))
     if args.out:
         adaptive = "adaptation" in args.context.describe()
@@ -131,26 +131,9 @@ def run(args) -> int:
     return 0
 
 
-_OBSERVE = None
-
-
-def _observe(traj):
-    """(metrics, arrays) of a trajectory: `metrics` and `trajectory_arrays` as one
-    compiled program (the persistent cache keeps it), where run eagerly their ~100
-    small operations compiled one kernel each (measured: 1.1 s of CPU per
-    `simulate`, 0.04 s traced + 0.34 s compiled once as one program)."""
-    global _OBSERVE
-    import jax
-    import numpy as np
-
-    from .._metrics import metrics
-    from .plotting import trajectory_arrays
-
-    if _OBSERVE is None:
-        _OBSERVE = jax.jit(lambda tr: (metrics(tr), trajectory_arrays(tr, numpy=False)))
-    m, arrays = _OBSERVE(traj)
-    m = jax.tree_util.tree_map(lambda x: jax.device_get(x), m)
-    return m, {k: np.asarray(v) for k, v in arrays.items()}
+PROGRAMS = ("jit__simulate", "jit_call_exported")
+"""The names JAX gives the simulation's compiled program in the persistent cache:
+traced (`smibjax._simulate`) and stored (`smibjax._exported`)."""
 
 
 def output(args) -> Path | None:
