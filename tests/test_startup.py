@@ -178,7 +178,9 @@ def test_a_second_identical_run_hits_the_persistent_cache(tmp_path, argv):
     cache = tmp_path / "cache"
     first = _run_logged(argv, cache, tmp_path)
     assert _refused(first) == []
-    assert any(e.startswith("jit__simulate-") for e in os.listdir(cache))
+    # simulate's programs are called from their stored (exported) form
+    program = "jit_call_exported" if argv[0] == "smibjax" else "jit__simulate"
+    assert any(e.startswith(f"{program}-") for e in os.listdir(cache))
     if argv[0] == "tuning.optimize":
         import shutil
 
@@ -187,7 +189,7 @@ def test_a_second_identical_run_hits_the_persistent_cache(tmp_path, argv):
     assert _refused(second) == []
     # the programs that take seconds to compile come from the cache (on a loaded
     # machine a few tiny ones may newly pass the 0.5 s threshold and be written)
-    programs = ["jit__simulate"]
+    programs = [program]
     if argv[0] == "tuning.optimize":
         programs += ["jit_run", "jit_reduce"]
     log = second.lower()
@@ -195,7 +197,10 @@ def test_a_second_identical_run_hits_the_persistent_cache(tmp_path, argv):
         assert f"compilation cache hit for '{p}'" in log, p
         assert f"compilation cache miss for '{p}'" not in log, p
     assert "compiling " in first and "(cache: cold)" in first
-    assert "compiling " in second and "(cache: warm)" in second
+    if argv[0] == "smibjax":  # nothing traced, nothing to announce
+        assert "compiling " not in second
+    else:
+        assert "compiling " in second and "(cache: warm)" in second
 
 
 @pytest.mark.parametrize(
@@ -227,3 +232,103 @@ def test_tuner_help_shows_the_config_defaults_and_a_whole_description(capsys):
     text = " ".join(capsys.readouterr().out.split())
     assert "(default: 100, from tuning/configs/default.toml)" in text
     assert "over batches of fault scenarios;" in text
+
+
+# -- simulate's warm start: the stored (jax.export) programs ----------------------
+
+_PROBE = """
+import sys
+from smibjax.cli import main
+code = main(sys.argv[1:])
+from smibjax import _exported
+heavy = ("diffrax", "optimistix", "lineax", "scipy", "matplotlib")
+loaded = ",".join(m for m in heavy if m in sys.modules)
+print(f"PATH {_exported.LAST_PATH} LOADED {loaded}", file=sys.stderr)
+sys.exit(code)
+"""
+
+
+def _simulate_child(args, cache: Path, cwd: Path, **env_extra) -> tuple[str, str, str]:
+    """(path taken, heavy modules loaded, summary) of one `simulate` in a fresh
+    process with the compilation cache `cache`."""
+    env = {
+        **os.environ,
+        "PYTHONPATH": f"{ROOT / 'src'}:{ROOT}",
+        "SMIBJAX_CACHE_DIR": str(cache),
+        **env_extra,
+    }
+    r = subprocess.run(
+        [sys.executable, "-c", _PROBE, "simulate", "--force", *args],
+        capture_output=True,
+        text=True,
+        cwd=cwd,
+        env=env,
+    )
+    assert r.returncode == 0, r.stderr[-3000:]
+    line = next(x for x in r.stderr.splitlines() if x.startswith("PATH "))
+    _, path, _, loaded = (line + " ").split(" ", 3)
+    summary = "\n".join(x for x in r.stdout.splitlines() if not x.startswith("wrote"))
+    return path, loaded.strip(), summary
+
+
+def _same_bits(a: Path, b: Path) -> None:
+    """Two npz files hold the same arrays, in the same order, bit for bit."""
+    import numpy as np
+
+    with np.load(a) as x, np.load(b) as y:
+        assert list(x.keys()) == list(y.keys())
+        for k in x:
+            assert x[k].dtype == y[k].dtype and x[k].shape == y[k].shape, k
+            assert x[k].tobytes() == y[k].tobytes(), k
+
+
+def test_a_second_simulate_calls_the_stored_program_bit_for_bit(tmp_path):
+    """Issue 32: a second identical `simulate` traced the simulator again and loaded
+    diffrax (2.3-2.6 CPU-s). Now the first run exports and stores its programs, the
+    second calls them (no trace; diffrax, SciPy and matplotlib not loaded), and both
+    give the traced path's npz and summary bit for bit. New values of the same
+    structure (`--set H=6`) call the stored programs too (values are arguments, not
+    constants); a changed option (`--rtol`) misses, exports anew and differs."""
+    cache = tmp_path / "cache"
+    out = ["--t-end", "3", "--out"]
+    traced = _simulate_child([*out, "a.npz"], cache, tmp_path, SMIBJAX_EXPORTED="0")
+    assert traced[0] == "traced"
+    first = _simulate_child([*out, "b.npz"], cache, tmp_path)
+    assert first[0] == "exported"
+    second = _simulate_child([*out, "c.npz"], cache, tmp_path)
+    assert second[:2] == ("stored", "")  # nothing heavy loaded
+    assert traced[2] == first[2] == second[2]
+    _same_bits(tmp_path / "a.npz", tmp_path / "b.npz")
+    _same_bits(tmp_path / "a.npz", tmp_path / "c.npz")
+
+    h6 = [*out, "h6.npz", "--set", "H=6"]
+    h6_traced = [*out, "h6t.npz", "--set", "H=6"]
+    new_values = _simulate_child(h6, cache, tmp_path)
+    assert new_values[0] == "stored"
+    reference = _simulate_child(h6_traced, cache, tmp_path, SMIBJAX_EXPORTED="0")
+    assert new_values[2] == reference[2] != second[2]
+    _same_bits(tmp_path / "h6.npz", tmp_path / "h6t.npz")
+
+    changed = _simulate_child([*out, "r.npz", "--rtol", "1e-7"], cache, tmp_path)
+    assert changed[0] == "exported"
+    assert changed[2] != second[2]  # another solver run (more steps)
+    assert len(list((cache / "smibjax-exported").glob("*.bin"))) == 2
+
+
+def test_a_damaged_stored_program_falls_back_silently(tmp_path):
+    """A stored file cut short is a miss (exported and stored again); one whose
+    program JAX cannot read runs the traced path; both with the same result."""
+    cache = tmp_path / "cache"
+    out = ["--t-end", "1", "--out"]
+    assert _simulate_child([*out, "a.npz"], cache, tmp_path)[0] == "exported"
+    (stored,) = (cache / "smibjax-exported").glob("*.bin")
+    data = stored.read_bytes()
+    stored.write_bytes(data[: len(data) // 2])
+    assert _simulate_child([*out, "b.npz"], cache, tmp_path)[0] == "exported"
+    data = stored.read_bytes()
+    mid = len(data) // 2  # inside the simulation's program
+    stored.write_bytes(data[:mid] + bytes(64) + data[mid + 64 :])
+    path, _, summary = _simulate_child([*out, "c.npz"], cache, tmp_path)
+    assert path == "traced"
+    _same_bits(tmp_path / "a.npz", tmp_path / "b.npz")
+    _same_bits(tmp_path / "a.npz", tmp_path / "c.npz")

@@ -44,7 +44,7 @@ from ._closed_loop import (
     initial_state,
 )
 from ._fixed import solve_fixed
-from ._inputs import DEFAULT_DELTA_BAND as DEFAULT_DELTA_BAND
+from ._inputs import DEFAULT_DELTA_BAND as _DELTA_BAND
 from ._inputs import require_known_values as require_known_values
 from ._inputs import simulate_inputs
 from ._network import prefault_stage, stage_at
@@ -61,6 +61,8 @@ from ._validate import require_x64
 from .controllers import AbstractController, Gains
 
 __all__ = ["Trajectory", "simulate", "is_stable", "DEFAULT_DELTA_BAND"]
+
+DEFAULT_DELTA_BAND = _DELTA_BAND  # rad, docs/model.md section 4
 
 
 Series = Float[Array, "*batch n"]
