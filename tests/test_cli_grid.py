@@ -130,6 +130,30 @@ def test_compare_a_case_refuses_in_one_line(tmp_path, capsys, extra, needle):
     assert not out.exists()
 
 
+def test_montecarlo_on_a_case_writes_to_the_output_root_without_out(
+    tmp_path, monkeypatch
+):
+    """Issue 32: `montecarlo --case` without --out computed and wrote nothing. It
+    writes a new folder runs/montecarlo-<time> like the SMIB's montecarlo: rows.csv
+    (one row per scenario) and summary.json (n, seed, stable fraction = the rows'
+    mean)."""
+    import json
+
+    monkeypatch.chdir(tmp_path)
+    argv = ["montecarlo", "--case", "smib-gencls", "--n", "3", "--t-end", "1"]
+    argv += ["--fault-times", "0.2:0.3", "--clear-after", "0.05:0.1", "--seed", "2"]
+    assert main(argv) == 0
+    (out,) = (tmp_path / "runs").glob("montecarlo-*")
+    lines = (out / "rows.csv").read_text().strip().splitlines()
+    assert len(lines) == 1 + 3
+    stable = [row.split(",")[lines[0].split(",").index("stable")] for row in lines[1:]]
+    summary = json.loads((out / "summary.json").read_text())
+    assert (summary["n"], summary["seed"]) == (3, 2)
+    assert summary["stable_fraction"] == sum(s == "True" for s in stable) / 3
+    assert main(argv) == 0  # a second run: a new folder, the first one kept
+    assert len(list((tmp_path / "runs").glob("montecarlo-*"))) == 2
+
+
 def test_montecarlo_on_a_case_rows_match_single_runs_and_not_the_chunk(tmp_path):
     """`montecarlo --case`: every row is the metrics of its own scenario (the same
     events through `simulate_jit` + `grid_metrics`, independently), and the rows do

@@ -460,21 +460,15 @@ def grid_rows(case, op, dist, n, chunk, args, desc="scenarios"):
 
 def run_montecarlo(args) -> int:
     """`montecarlo --case`: fault scenarios drawn over buses or lines; rows.csv,
-    summary.json in --out."""
-    from .._files import write_json, write_text
+    summary.json in --out (default: a new folder runs/montecarlo-<time>, as the
+    SMIB's montecarlo)."""
+    from .._commandline import out_path
+    from .._files import check_out_folder, write_json, write_text
     from ..grid.metrics import GridMetrics
 
-    out = Path(args.out) if args.out else None
-    if out is not None:
-        from .._files import check_out_folder
-
-        check_out_folder(out)  # before any work
-    if (
-        out
-        and out.exists()
-        and any(out.iterdir())
-        and not getattr(args, "force", False)
-    ):
+    out = out_path(args.out, "montecarlo")
+    check_out_folder(out)  # before any work
+    if out.exists() and any(out.iterdir()) and not getattr(args, "force", False):
         raise CLIError(f"--out {out}: the folder is not empty (use --force)")
     case, op, pf = load(args)
     dist, n, chunk = _grid_distribution(case, args)
@@ -500,18 +494,17 @@ def run_montecarlo(args) -> int:
         f"{n} scenarios in {wall:.1f} s: stable {summary['stable_fraction']:.3f}, "
         f"settling mean {summary['settling_mean']} s"
     )
-    if out:
-        out.mkdir(parents=True, exist_ok=True)
-        where_name = "bus_position" if dist.kind == "bus" else "branch_position"
-        cols = [where_name, "t_fault", "t_clear", *GridMetrics.FIELDS]
-        lines = [",".join(cols)]
-        for i in range(n):
-            vals = [meta["bus"][i], meta["t_fault"][i], meta["t_clear"][i]]
-            vals += [rows[f][i] for f in GridMetrics.FIELDS]
-            lines.append(",".join(str(v) for v in vals))
-        write_text(out / "rows.csv", "\n".join(lines) + "\n")
-        write_json(out / "summary.json", summary)
-        print(f"wrote {out}/rows.csv, {out}/summary.json")
+    out.mkdir(parents=True, exist_ok=True)
+    where_name = "bus_position" if dist.kind == "bus" else "branch_position"
+    cols = [where_name, "t_fault", "t_clear", *GridMetrics.FIELDS]
+    lines = [",".join(cols)]
+    for i in range(n):
+        vals = [meta["bus"][i], meta["t_fault"][i], meta["t_clear"][i]]
+        vals += [rows[f][i] for f in GridMetrics.FIELDS]
+        lines.append(",".join(str(v) for v in vals))
+    write_text(out / "rows.csv", "\n".join(lines) + "\n")
+    write_json(out / "summary.json", summary)
+    print(f"wrote {out}/rows.csv, {out}/summary.json")
     return 0
 
 

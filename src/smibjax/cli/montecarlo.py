@@ -66,8 +66,7 @@ def add_parser(sub) -> None:
     m.add_argument(
         "--out",
         metavar="DIR",
-        help="output folder (default: a new folder runs/montecarlo-<time>; with "
-        "--case, nothing written)",
+        help="output folder (default: a new folder runs/montecarlo-<time>)",
     )
     add_case_options(m, events=False)
     add_montecarlo_options(m)
