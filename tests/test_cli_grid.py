@@ -110,6 +110,28 @@ def test_compare_a_case_against_its_parameter_sets(tmp_path, capsys):
     table = (out / "compare.md").read_text()
     assert "| heavy | GENCLS.H=12 |" in table and "| case | the case's own |" in table
     assert "peak Efd (pu)" in table and "the same for every set" in table
+    # issue 32: the CCT of a bolted fault at each fault bus (bus 2, at 0.5 s), one
+    # per set (H = 12 on every GENCLS, the infinite bus's machine too: not longer)
+    cct = {k: v["cct"]["2"] for k, v in data["cct"].items()}
+    assert list(cct) == ["case", "param", "heavy"]
+    assert all(0 < c < 1 for c in cct.values()) and cct["heavy"] != cct["case"]
+    assert s["case"]["cct_shortest"] == {"bus": 2, "cct": cct["case"]}
+    assert f"| {cct['case']:.3f} (bus 2) |" in table and "shortest CCT (s)" in table
+    # independently: the case's own machine survives a fault of cct, not of cct + tol
+    import jax.numpy as jnp
+
+    from smibjax.grid.case import load_case
+    from smibjax.grid.events import BusFault
+    from smibjax.grid.operating import operating_point
+    from smibjax.grid.simulate import simulate_jit
+
+    case = load_case("smib-gencls")
+    op, _ = operating_point(case)
+    pos = case.system.bus_index(2)
+    for d, survives in ((cct["case"], True), (cct["case"] + 1e-3, False)):
+        ev = BusFault(bus=jnp.asarray(pos), t_on=jnp.asarray(0.5), t_off=0.5 + d)
+        tr = simulate_jit(case, op, (ev,), t_end=2.0, dt_save=0.05)
+        assert bool(tr.stable) is survives, d
 
 
 @pytest.mark.parametrize(

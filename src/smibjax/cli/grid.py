@@ -658,8 +658,82 @@ def case_summary(rows: dict) -> dict:
     }
 
 
+CASE_CCT_MAX = 1.0
+"""The longest fault duration (s) `compare --case` tries for a CCT."""
+
+
+def case_cct(case, op, args) -> dict:
+    """`compare --case`: the critical clearing time of a bolted fault at each bus of
+    --fault-buses (all buses by default), applied at --fault-time and removed
+    without tripping, by bisection to --tol in [0, `CASE_CCT_MAX`] s over the
+    --t-end horizon (`critical_clearing_times_grid`, as `cct --case`)."""
+    from .._commandline import announce_compile
+    from ..grid.cct import critical_clearing_times_grid
+
+    buses = _int_list(args.fault_buses) or [
+        int(b) for b in np.asarray(case.system.buses.number)
+    ]
+    try:
+        with announce_compile("the batched CCT bisection"):
+            return critical_clearing_times_grid(
+                case,
+                op,
+                buses,
+                t_fault=args.fault_time,
+                t_max=CASE_CCT_MAX,
+                tol=args.tol,
+                t_end=args.t_end,
+                rtol=args.rtol,
+                atol=args.atol,
+            )
+    except ValueError as e:
+        raise CLIError(str(e)) from None
+
+
+def _cct_text(args, dist) -> str:
+    """What the CCT column of `compare --case` measures, or why it is empty
+    ("none: ...")."""
+    if dist.kind != "bus":
+        return "none (the faults are on lines: --fault-kind bus has a CCT column)"
+    if not args.t_end > args.fault_time + CASE_CCT_MAX:
+        return (
+            f"none (--t-end {args.t_end:g} s must exceed --fault-time "
+            f"{args.fault_time:g} s + {CASE_CCT_MAX:g} s)"
+        )
+    return (
+        f"a bolted fault at each fault bus at {args.fault_time:g} s, removed without "
+        f"tripping; the longest duration in [0, {CASE_CCT_MAX:g}] s (bisection to "
+        f"{args.tol:g} s) after which no angle leaves the centre of inertia by more "
+        f"than pi within {args.t_end:g} s; the table shows the shortest over the "
+        "buses, compare.json every bus's"
+    )
+
+
+def shortest_cct(res: dict) -> dict:
+    """The bus with the shortest CCT of a `case_cct` result: {"bus", "cct" (s; None:
+    stable at the longest duration tried, 0: unstable at the shortest)}."""
+    ccts = res["cct"]
+
+    def key(b):
+        c = ccts[b]
+        return math.inf if c is None else c
+
+    bus = min(ccts, key=key)
+    return {"bus": int(bus), "cct": ccts[bus]}
+
+
+def _cct_cell(s: dict) -> str:
+    c = s.get("cct_shortest")
+    if c is None:
+        return "-"
+    if c["cct"] is None:
+        return f"> {CASE_CCT_MAX:g} (all buses)"
+    return f"{c['cct']:.3f} (bus {c['bus']})"
+
+
 def case_table(case_name: str, sets: dict, summaries: dict) -> str:
-    """Markdown: one row per parameter set of a case."""
+    """Markdown: one row per parameter set of a case (the shortest CCT over the
+    fault buses where the faults are at buses)."""
 
     def f(x, spec=".3f"):
         return "-" if x is None else format(x, spec)
@@ -667,8 +741,8 @@ def case_table(case_name: str, sets: dict, summaries: dict) -> str:
     lines = [
         f"| set ({case_name}) | parameters | stable % | mean settling (s) | "
         "p95 settling (s) | mean overshoot (rad) | p95 overshoot (rad) | "
-        "peak Efd (pu) | lowest bus voltage (pu) |",
-        "|---|---|---|---|---|---|---|---|---|",
+        "peak Efd (pu) | lowest bus voltage (pu) | shortest CCT (s) |",
+        "|---|---|---|---|---|---|---|---|---|---|",
     ]
     for label, s in summaries.items():
         params = ", ".join(sets[label]) or "the case's own"
@@ -676,7 +750,7 @@ def case_table(case_name: str, sets: dict, summaries: dict) -> str:
             f"| {label} | {params} | {100 * s['stable_fraction']:.1f} | "
             f"{f(s['settling_mean'], '.2f')} | {f(s['settling_p95'], '.2f')} | "
             f"{f(s['overshoot_mean'])} | {f(s['overshoot_p95'])} | "
-            f"{f(s['efd_peak'])} | {f(s['v_min'])} |"
+            f"{f(s['efd_peak'])} | {f(s['v_min'])} | {_cct_cell(s)} |"
         )
     return "\n".join(lines) + "\n"
 
@@ -711,19 +785,31 @@ def run_compare(args) -> int:
         f"{dist.t_fault[0]:g}-{dist.t_fault[1]:g} s, cleared after "
         f"{dist.clear_after[0]:g}-{dist.clear_after[1]:g} s"
     )
-    summaries = {}
+    cct_text = _cct_text(args, dist)
+    if cct_text.startswith("none"):
+        print(f"smibjax: note: CCT column: {cct_text}", file=sys.stderr)
+    summaries, ccts = {}, {}
     for label, (a, case, op, _pf, dist, n, chunk) in loaded.items():
         rows, _ = grid_rows(case, op, dist, n, chunk, a, desc=label)
         summaries[label] = case_summary(rows)
+        if not cct_text.startswith("none"):
+            ccts[label] = case_cct(case, op, a)
+            summaries[label]["cct_shortest"] = shortest_cct(ccts[label])
     table = case_table(case.name, sets, summaries)
     write_text(
         out / "compare.md",
         f"# Parameter sets compared on {case.name}\n\nScenarios: {dist_text} (the "
-        "same for every set).\n\n" + table,
+        f"same for every set).\n\nCCT: {cct_text}.\n\n" + table,
     )
     write_json(
         out / "compare.json",
-        {"case": case.name, "scenarios": dist_text, "sets": sets, "summary": summaries},
+        {
+            "case": case.name,
+            "scenarios": dist_text,
+            "sets": sets,
+            "summary": summaries,
+            "cct": ccts,
+        },
     )
     print(f"{case.name}: {dist_text}")
     print(table)
