@@ -297,6 +297,7 @@ def _write(path: Path, stored) -> None:
         try:
             with os.fdopen(fd, "wb") as fh:
                 fh.write(data)
+            os.chmod(tmp, 0o644)  # (mkstemp's 0600: as JAX's cache files)
             os.replace(tmp, path)
         except BaseException:
             Path(tmp).unlink(missing_ok=True)
