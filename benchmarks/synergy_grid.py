@@ -87,7 +87,7 @@ def raw_of(space, values: dict) -> dict:
     return space.to_raw([float(values[n]) for n in space.names])
 
 
-def synex_config(cfg: dict, steps: int = 1) -> dict:
+def synex_config(cfg: dict, steps: int = 1, start: dict | None = None) -> dict:
     """The PSS config's scenarios, loss and validation on `kundur-synex`, training
     SYNEX.BETA, SYNEX.T1, SYNEX.ALPHA and SYNEX.C (one value each, shared by the four
     devices; linear in BETA and ALPHA, log in T1 and C), starting from BETA = -5,
@@ -104,6 +104,7 @@ def synex_config(cfg: dict, steps: int = 1) -> dict:
             "SYNEX.T1": 0.005,
             "SYNEX.ALPHA": 1.0,
             "SYNEX.C": 1.0,
+            **(start or {}),
         },
     }
     out["gains"] = {
@@ -137,8 +138,28 @@ def main(argv=None) -> int:
     p.add_argument("--n", type=int, default=64, help="held-out scenarios")
     p.add_argument("--seed", type=int, default=2026, help="held-out seed")
     p.add_argument("--tune", type=int, default=0, help="gradient steps on SYNEX")
+    p.add_argument(
+        "--tune-start",
+        default="",
+        help="start values of the tuning other than BETA = -5, T1 = 0.005, "
+        "ALPHA = 1, C = 1, e.g. C=5,BETA=-3",
+    )
     p.add_argument("--out", default=str(ROOT / "benchmarks/results"))
     args = p.parse_args(argv)
+    start = {}
+    for item in filter(None, args.tune_start.split(",")):
+        name, _, value = item.partition("=")
+        try:
+            start[f"SYNEX.{name.strip().upper()}"] = float(value)
+        except ValueError:
+            print(f"--tune-start {item!r}: not NAME=NUMBER", file=sys.stderr)
+            return 2
+        if name.strip().upper() not in ("BETA", "T1", "ALPHA", "C"):
+            print(
+                f"--tune-start {item!r}: NAME must be BETA, T1, ALPHA or C",
+                file=sys.stderr,
+            )
+            return 2
 
     cfg = load_grid_config(args.config)
     check_grid_config(cfg)
@@ -163,7 +184,7 @@ def main(argv=None) -> int:
         "cpu_s": cpu_seconds() - c0,
     }
 
-    syn_cfg = synex_config(held_cfg, args.tune)
+    syn_cfg = synex_config(held_cfg, args.tune, start)
     check_grid_config(syn_cfg)
     syn = build_grid(syn_cfg)
     t0, c0 = time.perf_counter(), cpu_seconds()
@@ -182,6 +203,9 @@ def main(argv=None) -> int:
         "wall_s": time.perf_counter() - t0,
         "cpu_s": cpu_seconds() - c0,
     }
+    tuning_start = ", ".join(
+        f"{n.split('.')[1]} = {syn_cfg['case']['set'][n]:g}" for n in syn.space.names
+    )
     if args.tune > 0:
         t0, c0 = time.perf_counter(), cpu_seconds()
         with tempfile.TemporaryDirectory() as tmp:
@@ -193,7 +217,7 @@ def main(argv=None) -> int:
             "batch": syn_cfg["batch"],
             "best_step": state.best.step,
         }
-        label = f"SYNEX tuned ({args.tune} gradient steps)"
+        label = f"SYNEX tuned ({args.tune} gradient steps from {tuning_start})"
         values = {k: float(v) for k, v in syn.space.values(state.best.raw).items()}
         rows[label] = validate(syn, state.best.raw, sval, held)
         gains[label] = values
@@ -214,6 +238,7 @@ def main(argv=None) -> int:
             "n_held_out": args.n,
             "held_out_seed": args.seed,
             "tune_steps": args.tune,
+            "tune_start": tuning_start,
         },
         {
             "rows": rows,

@@ -9,11 +9,11 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from smibjax import OperatingPoint, Plant
+from smibjax import OperatingPoint, ParameterError, Plant
 from smibjax.controllers.synergetic.gains import Gains
 from smibjax.controllers.synergetic.law import control_law
 from smibjax.grid.case import build_case, case_files, load_case
-from smibjax.grid.devices.synex import thevenin_reactance
+from smibjax.grid.devices.synex import SYNEX, thevenin_reactance
 from smibjax.grid.events import BranchClose, BranchTrip, BusFault
 from smibjax.grid.loop import evaluate, state_labels
 from smibjax.grid.network import stage_configs, stage_matrices
@@ -131,3 +131,43 @@ def test_synex_fault_runs_end_stable_or_flagged_unstable_never_nan():
     assert not bool(tr50.stable) and float(tr50.t_unstable) < 30.0
     before = np.asarray(tr50.ts) < float(tr50.t_unstable)
     assert np.all(np.isfinite(np.asarray(tr50.delta)[before]))
+
+
+def _group(**over):
+    p = {
+        "XE": 0.3,
+        "XD": 1.1,
+        "XDP": 0.2,
+        "TDOP": 4.0,
+        "H": 5.0,
+        "D": 0.0,
+        "BETA": -1.0,
+        "T1": 0.005,
+        "ALPHA": 5.0 / 7.0,
+        "C": 1.0,
+        "EMIN": -math.inf,
+        "EMAX": math.inf,
+    }
+    return SYNEX.from_params([0], [{**p, **over}])
+
+
+def test_synex_is_finite_at_the_singular_angle_and_refuses_bad_gains():
+    """At x1 = 0 (no power out, g31 = 0) the law divides by the floored g31: a
+    finite field voltage even with no limits. BETA = 0, ALPHA outside (1/2, 1] and
+    XD < XDP are refused with one line naming the value."""
+    dev = _group()
+    meas = {
+        k: jnp.array([v])
+        for k, v in {"omega": 0.0, "Pe": 0.0, "Qe": 0.0, "Vt": 1.0}.items()
+    }
+    ref = jnp.array([[0.5], [1.0], [0.0]])
+    efd = dev.out(jnp.zeros((0, 1)), meas, ref)
+    assert np.all(np.isfinite(np.asarray(efd))) and abs(float(efd[0])) > 1e3
+    for over, name in [
+        ({"BETA": 0.0}, "BETA"),
+        ({"ALPHA": 0.5}, "ALPHA"),
+        ({"XD": 0.1}, "XD"),
+    ]:
+        with pytest.raises(ParameterError, match=f"SYNEX.{name} = ") as e:
+            _group(**over)
+        assert "\n" not in str(e.value)
