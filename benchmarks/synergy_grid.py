@@ -171,9 +171,9 @@ def main(argv=None) -> int:
     t0, c0 = time.perf_counter(), cpu_seconds()
     val = _validation_fn(pss)
     tuned = json.loads(Path(args.pss_result).read_text())["gains"]["gradient (tuned)"]
-    start = dict(zip(pss.space.names, pss.space.start, strict=True))
+    textbook = dict(zip(pss.space.names, pss.space.start, strict=True))
     for label, values in (
-        ("textbook PSS", start),
+        ("textbook PSS", textbook),
         ("tuned PSS (gradient, tuning_grid.py)", tuned),
     ):
         rows[label] = validate(pss, raw_of(pss.space, values), val, held)
