@@ -24,6 +24,10 @@ BETA = -5, T1 = 0.005, ASC, C = 1.
 
     python benchmarks/synergy_grid.py [--n 64] [--seed 2026] [--tune 0]
 
+Every set with all held-out faults stable also gets its critical clearing times at
+`--cct-buses` (default 5, 8, 11, as benchmarks/tuning_grid.py: load factor 1, bolted
+bus fault at 0.5 s, no tripping, bisection to 5 ms in [0, 1] s).
+
 Prints a table and writes benchmarks/results/synergy_grid_kundur.json.
 """
 
@@ -46,6 +50,7 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 from _results import write_results  # noqa: E402
+from tuning_grid import cct_of  # noqa: E402
 
 from tuning.grid_config import check_grid_config, load_grid_config  # noqa: E402
 from tuning.grid_problem import build_grid  # noqa: E402
@@ -144,8 +149,19 @@ def main(argv=None) -> int:
         help="start values of the tuning other than BETA = -5, T1 = 0.005, "
         "ALPHA = 1, C = 1, e.g. C=5,BETA=-3",
     )
+    p.add_argument(
+        "--cct-buses",
+        default="5,8,11",
+        help="fault buses of the CCTs of every set with 100%% stable held-out "
+        "faults (as benchmarks/tuning_grid.py; empty: none)",
+    )
     p.add_argument("--out", default=str(ROOT / "benchmarks/results"))
     args = p.parse_args(argv)
+    try:
+        buses = [int(b) for b in args.cct_buses.split(",") if b.strip()]
+    except ValueError:
+        print(f"--cct-buses {args.cct_buses!r}: not bus numbers", file=sys.stderr)
+        return 2
     start = {}
     for item in filter(None, args.tune_start.split(",")):
         name, _, value = item.partition("=")
@@ -166,7 +182,7 @@ def main(argv=None) -> int:
     held_cfg = {**cfg, "validation": {**cfg["validation"], "n": args.n}}
     pss = build_grid(held_cfg)
     held = pss.batch(0, n=args.n, seed=args.seed)
-    rows, timing, gains = {}, {}, {}
+    rows, timing, gains, raws = {}, {}, {}, {}
 
     t0, c0 = time.perf_counter(), cpu_seconds()
     val = _validation_fn(pss)
@@ -176,7 +192,8 @@ def main(argv=None) -> int:
         ("textbook PSS", textbook),
         ("tuned PSS (gradient, tuning_grid.py)", tuned),
     ):
-        rows[label] = validate(pss, raw_of(pss.space, values), val, held)
+        raws[label] = (pss, raw_of(pss.space, values))
+        rows[label] = validate(pss, raws[label][1], val, held)
         gains[label] = {n: float(values[n]) for n in pss.space.names}
         print(f"{label}: {rows[label]}", file=sys.stderr, flush=True)
     timing["pss_sets"] = {
@@ -196,7 +213,8 @@ def main(argv=None) -> int:
             "SYNEX.ALPHA": alpha,
             "SYNEX.C": c,
         }
-        rows[label] = validate(syn, raw_of(syn.space, values), sval, held)
+        raws[label] = (syn, raw_of(syn.space, values))
+        rows[label] = validate(syn, raws[label][1], sval, held)
         gains[label] = values
         print(f"{label}: {rows[label]}", file=sys.stderr, flush=True)
     timing["synex_sets"] = {
@@ -219,14 +237,34 @@ def main(argv=None) -> int:
         }
         label = f"SYNEX tuned ({args.tune} gradient steps from {tuning_start})"
         values = {k: float(v) for k, v in syn.space.values(state.best.raw).items()}
+        raws[label] = (syn, state.best.raw)
         rows[label] = validate(syn, state.best.raw, sval, held)
         gains[label] = values
         print(f"{label}: {values} {rows[label]}", file=sys.stderr, flush=True)
 
+    t0, c0 = time.perf_counter(), cpu_seconds()
+    for label, (problem, raw) in raws.items():
+        if buses and rows[label]["stable_fraction"] == 1.0:
+            rows[label]["cct"] = cct_of(problem, raw, buses)
+            print(f"{label}: CCT {rows[label]['cct']}", file=sys.stderr, flush=True)
+    timing["cct"] = {"wall_s": time.perf_counter() - t0, "cpu_s": cpu_seconds() - c0}
+
     print(f"\nkundur: held-out Monte Carlo of {args.n} scenarios (seed {args.seed})")
-    print(f"{'set':<40}" + "".join(f"{k:>27}" for k in KEYS))
+    print(
+        f"{'set':<40}"
+        + "".join(f"{k:>27}" for k in KEYS)
+        + "".join(f"{'CCT bus ' + str(b):>14}" for b in buses)
+    )
     for label, r in rows.items():
-        print(f"{label:<40}" + "".join(f"{r[k]:>27.4f}" for k in KEYS))
+        cct = [r.get("cct", {}).get(str(b), "-") for b in buses]
+        print(
+            f"{label:<40}"
+            + "".join(f"{r[k]:>27.4f}" for k in KEYS)
+            + "".join(
+                f"{'> 1' if c is None else (c if c == '-' else f'{c:.3f}'):>14}"
+                for c in cct
+            )
+        )
     for k, t in timing.items():
         print(f"{k}: {json.dumps(t)}")
     write_results(
@@ -239,6 +277,7 @@ def main(argv=None) -> int:
             "held_out_seed": args.seed,
             "tune_steps": args.tune,
             "tune_start": tuning_start,
+            "cct_buses": buses,
         },
         {
             "rows": rows,
@@ -246,7 +285,9 @@ def main(argv=None) -> int:
             "timing": timing,
             "note": "wall times on a shared, loaded 2-core machine; cpu_s is this "
             "process's user+system CPU time; settling inf = some scenario never "
-            "settled or was unstable",
+            "settled or was unstable; cct: s at load factor 1 (bolted bus fault at "
+            "0.5 s, no tripping), null = stable with a 1 s fault, computed only for "
+            "the sets with every held-out fault stable",
         },
     )
     return 0
