@@ -169,6 +169,7 @@ def test_case_files_are_package_data():
             "kundur.raw",
             "kundur_gencls.dyr",
             "kundur_nopss.dyr",
+            "kundur_synex.dyr",
             "smib.dyr",
             "smib.raw",
             "smib_gencls.dyr",

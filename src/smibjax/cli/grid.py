@@ -35,7 +35,7 @@ def add_case_options(p, events: bool = True) -> None:
     g.add_argument(
         "--case",
         metavar="NAME|FILE.raw",
-        help="a built-in case (kundur, kundur-gencls, kundur-nopss, ieee39, "
+        help="a built-in case (kundur, kundur-gencls, kundur-nopss, kundur-synex, ieee39, "
         "ieee39-pss, ieee39-gencls, smib, smib-gencls) or a PSS/E v33 raw file "
         "(with --dyr); without it the command runs the paper's SMIB",
     )

@@ -27,7 +27,7 @@ def add_parser(sub) -> None:
     s.add_argument(
         "--case",
         required=True,
-        help="a built-in case (kundur, kundur-nopss, kundur-gencls, ieee39, ...) or "
+        help="a built-in case (kundur, kundur-nopss, kundur-gencls, kundur-synex, ieee39, ...) or "
         "a PSS/E raw file (with --dyr)",
     )
     s.add_argument("--dyr", metavar="FILE", help="the dyr file of a raw --case")

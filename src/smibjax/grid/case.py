@@ -27,6 +27,7 @@ BUILTIN = {
     "kundur": ("kundur.raw", "kundur.dyr"),
     "kundur-gencls": ("kundur.raw", "kundur_gencls.dyr"),
     "kundur-nopss": ("kundur.raw", "kundur_nopss.dyr"),
+    "kundur-synex": ("kundur.raw", "kundur_synex.dyr"),
     "ieee39": ("ieee39.raw", "ieee39.dyr"),
     "ieee39-pss": ("ieee39.raw", "ieee39_pss.dyr"),
     "ieee39-gencls": ("ieee39.raw", "ieee39_gencls.dyr"),
@@ -35,7 +36,7 @@ BUILTIN = {
 }
 
 MACHINES = ("GENCLS", "GENTRA", "GENROU")
-EXCITERS = ("SEXS", "IEEEX1", "EXDC2", "EXST1")
+EXCITERS = ("SEXS", "IEEEX1", "EXDC2", "EXST1", "SYNEX")
 STABILIZERS = ("IEEEST", "STAB1")
 GOVERNORS = ("TGOV1",)
 SVCS = ("CSVGN1",)

@@ -871,13 +871,31 @@ DYR_MODELS: dict[str, tuple[str, ...]] = {
     "STAB1": ("K_T", "T", "T1_T3", "T3", "T2_T4", "T4", "HLIM"),
     "TGOV1": ("R", "T1", "VMAX", "VMIN", "T2", "T3", "Dt"),
     "CSVGN1": ("K", "T1", "T2", "T3", "T4", "T5", "RMIN", "VMAX", "VMIN", "CBASE"),
+    # smibjax-specific, not a PSS/E model: the paper's synergetic excitation law on
+    # a local SMIB equivalent (devices/synex.py)
+    "SYNEX": (
+        "XE",
+        "XD",
+        "XDP",
+        "TDOP",
+        "H",
+        "D",
+        "BETA",
+        "T1",
+        "ALPHA",
+        "C",
+        "EMIN",
+        "EMAX",
+    ),
 }
 """The dyr models read, each with its parameter names in the order of the dyr record
 (the PSS/E CON order; IEEEST's two ICONs, the input signal code ICS and the remote bus
 IB, come first, as PSS/E writes them). Source: PSS/E 33 Model Library (GENCLS, GENTRA,
 GENROU, SEXS, IEEEX1, EXDC2, EXST1, IEEEST, STAB1, TGOV1, CSVGN1), checked against
 ANDES 2.0's andes/io/psse-dyr.yaml, which has the same order for every model it reads
-(it has no GENTRA, STAB1 or CSVGN1). Names: `_p` a prime (Xd_p = X'd, Tdo_p = T'do),
+(it has no GENTRA, STAB1 or CSVGN1). SYNEX is smibjax's own record (no PSS/E or
+ANDES model): the paper's synergetic excitation law as a decentralized exciter
+(`devices.synex`). Names: `_p` a prime (Xd_p = X'd, Tdo_p = T'do),
 `_pp` a double prime, `A_B` a ratio A/B; S10, S12 the saturation S(1.0), S(1.2)."""
 
 DYR_KINDS: dict[str, str] = {
@@ -889,6 +907,7 @@ DYR_KINDS: dict[str, str] = {
     "IEEEX1": "exciter",
     "EXDC2": "exciter",
     "EXST1": "exciter",
+    "SYNEX": "exciter",
     "IEEEST": "pss",
     "STAB1": "pss",
     "TGOV1": "governor",

@@ -1,8 +1,9 @@
 """The built-in cases as PSS/E v33 files: Kundur's two-area system (`kundur.raw` with
-`kundur.dyr`, `kundur_nopss.dyr`, `kundur_gencls.dyr`), the IEEE 39-bus New England
-system (`ieee39.raw` with `ieee39.dyr`, `ieee39_pss.dyr`, `ieee39_gencls.dyr`) and the
-paper's SMIB with SVC (`smib.raw` with `smib.dyr`, `smib_gencls.dyr`). Sources, chosen
-values and unit conversions: README.md beside these files."""
+`kundur.dyr`, `kundur_nopss.dyr`, `kundur_gencls.dyr`, `kundur_synex.dyr`), the IEEE
+39-bus New England system (`ieee39.raw` with `ieee39.dyr`, `ieee39_pss.dyr`,
+`ieee39_gencls.dyr`) and the paper's SMIB with SVC (`smib.raw` with `smib.dyr`,
+`smib_gencls.dyr`). Sources, chosen values and unit conversions: README.md beside
+these files."""
 
 from __future__ import annotations
 

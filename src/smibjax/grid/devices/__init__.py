@@ -13,4 +13,5 @@ from .ieeex1 import EXDC2 as EXDC2
 from .ieeex1 import IEEEX1 as IEEEX1
 from .sexs import SEXS as SEXS
 from .stab1 import STAB1 as STAB1
+from .synex import SYNEX as SYNEX
 from .tgov1 import TGOV1 as TGOV1
