@@ -75,6 +75,15 @@ def test_simulate_a_case_writes_named_arrays_and_a_plot(tmp_path, capsys):
             ["--case", "smib-gencls", "--load-factor", "40", "--fault-bus", "2"],
             "did not converge",
         ),
+        # the SMIB's options were ignored on a case (found running kundur-synex)
+        (
+            ["--case", "smib-gencls", "--set", "H=6", "--fault-bus", "2"],
+            "--set is not allowed with --case",
+        ),
+        (
+            ["--case", "smib-gencls", "--gains", "g.json", "--fault-bus", "2"],
+            "--gains is not allowed with --case",
+        ),
     ],
 )
 def test_bad_case_input_is_one_line(argv, needle, tmp_path, capsys):

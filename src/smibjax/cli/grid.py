@@ -108,6 +108,16 @@ def load(args):
     from ..grid.powerflow import PowerFlowError
     from ..grid.psse import PsseError
 
+    for flag, value in (
+        ("--set", getattr(args, "set", None)),
+        ("--gains", getattr(args, "gains", None)),
+    ):
+        if value:
+            raise CLIError(
+                f"{flag} is not allowed with --case: it sets the paper's SMIB "
+                "controller or plant; a case's parameters take --param "
+                "MODEL.PARAM=VALUE"
+            )
     if (
         args.dyr
         and not str(args.case).endswith(".raw")
