@@ -20,6 +20,11 @@ import pytest
 from tuning.grid_config import check_grid_config, load_grid_config
 from tuning.optimize import main
 
+# one worker runs the module: its runs share one compiled program in-process
+# (`grid_run._compiled`); on the other worker the resume and gradient tests traced and
+# lowered it again (33 s and 30 s of the suite on the CI machine, 8 s and 1 s here)
+pytestmark = pytest.mark.xdist_group("tuning_grid")
+
 ROOT = Path(__file__).resolve().parent.parent
 RAW = ROOT / "src/smibjax/grid/cases/smib.raw"
 DYR = ROOT / "tests/data/grid_tuning/smib_pss.dyr"
