@@ -70,6 +70,20 @@ def test_resume_refuses_a_changed_config_key(tmp_path, capsys):
     assert "optimizer.learning_rate = 0.05 differs" in capsys.readouterr().err
 
 
+def test_a_run_from_before_the_training_layer_resumes(tmp_path, capsys):
+    """A config.json without train.phi_layer (written before the key) is a run
+    trained without it: it resumes under the default (0) and not under another."""
+    out, cfg, _ = _saved_run(tmp_path)
+    saved = json.loads((out / "config.json").read_text())
+    del saved["train"]["phi_layer"]
+    (out / "config.json").write_text(json.dumps(saved))
+    (out / CHECKPOINT).write_bytes(b"x")
+    assert start_mode(out, cfg, True, CHECKPOINT) is True
+    cfg["train"]["phi_layer"] = 0.001
+    with pytest.raises(sj.ParameterError, match="train.phi_layer = 0.001 differs"):
+        start_mode(out, cfg, True, CHECKPOINT)
+
+
 def test_first_difference():
     a = load_config()
     assert first_difference(a, json.loads(json.dumps(a))) is None

@@ -282,6 +282,12 @@ def check_config(cfg: dict) -> None:
     )
     t = cfg["train"]
     req(t["dt"] > 0, "train.dt", t["dt"], "must be > 0")
+    req(
+        math.isfinite(t["phi_layer"]) and t["phi_layer"] >= 0,
+        "train.phi_layer",
+        t["phi_layer"],
+        "must be a finite number >= 0",
+    )
     req(t["t_end"] > 0 and v["t_end"] > 0, "t_end", t["t_end"], "must be > 0")
     req(
         isinstance(t["checkpoints"], int) and t["checkpoints"] >= 0,

@@ -150,6 +150,7 @@ def build(cfg) -> Problem:
         controller=cfg["controller"],
         projection=box,
         phi_layer=float(cfg.get("options", {}).get("phi_layer", 0.0)),
+        train_phi_layer=float(t["phi_layer"]),
     )
     # D = [] in a config: the plant's own damping (not drawn)
     dist = ScenarioDistribution.from_dict(

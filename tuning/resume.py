@@ -85,6 +85,9 @@ def start_mode(out: Path, cfg: dict, resume: bool, checkpoint: str) -> bool:
         raise ParameterError(
             f"--resume: {str(saved_path)!r} is not a tuning run's configuration ({e})"
         ) from None
+    train = saved.get("train") if isinstance(saved, dict) else None
+    if isinstance(train, dict) and "phi_layer" not in train:
+        train["phi_layer"] = 0.0  # a run from before the key: trained without it
     diff = first_difference(saved, json.loads(json.dumps(cfg)))
     if diff is not None:
         key, old, new = diff

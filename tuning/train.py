@@ -60,12 +60,18 @@ class Setup:
     controller: str = "aftsc"
     projection: EstimateBox | None = None
     phi_layer: float = 0.0
+    train_phi_layer: float = 0.0
 
-    def controller_of(self, params) -> AbstractController:
-        """The controller with parameter set `params` (`space.to_gains(raw)`)."""
+    def controller_of(self, params, training: bool = False) -> AbstractController:
+        """The controller with parameter set `params` (`space.to_gains(raw)`);
+        `training`: the differentiated runs' controller, whose evolution law has the
+        boundary layer max(phi_layer, train_phi_layer) (the validated one: phi_layer)."""
         if isinstance(params, AbstractController):
             return params
-        options = {"projection": self.projection, "phi_layer": self.phi_layer}
+        layer = (
+            max(self.phi_layer, self.train_phi_layer) if training else self.phi_layer
+        )
+        options = {"projection": self.projection, "phi_layer": layer}
         return as_controller(params, self.adaptation, options)
 
 
@@ -112,7 +118,7 @@ def train_run(s: Setup, raw, fault: sj.Fault, D=None, scale=1.0) -> sj.Trajector
     plant = s.plant if D is None else with_damping(s.plant, D)
     plant = scaled_limits(plant, scale)
     return sj.simulate(
-        s.controller_of(s.space.to_gains(raw)),
+        s.controller_of(s.space.to_gains(raw), training=True),
         fault,
         plant,
         solver=s.train_solver,
