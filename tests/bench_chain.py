@@ -60,11 +60,13 @@ TINY = {
     + ["--roundtrips", "3"],
     "stiff_solvers": ["--methods", "RK45", "Radau", "--t-end", "1.0"],
     "compile": ["--cases", "simulate", "--repeat", "1", "--t-end", "0.8"],
-    # on paper.toml's 1 ms training grid (issue 33) the one-scenario loss curves
-    # sharply in gamma2 within 1e-6 raw units: central differences at 1e-6 differ by
-    # 1.3e-2, at 1e-7 by 1.3e-4 and at 1e-8 by 5e-5 (rounding not yet dominant)
+    # paper.toml's training (1 ms grid, the 1e-3 training layer since 2026-12-02):
+    # d/d gamma2 curves within 1e-5 raw units (relative error 3.5e-2 at eps 1e-5,
+    # 1.6e-3 at 3e-6, 7e-4 at 2e-6, 3e-5 at 1e-7) while d/d T2 (3.6e-5) is small
+    # against the loss's rounding (1.6e-2 at 1e-6, 6.5e-2 at 1e-7, 8e-5 at 2e-6):
+    # 2e-6 leaves both at least 10x inside the test's 1e-2
     "gradients": ["--batch", "1", "--t-end", "1.5", "--repeat", "1"]
-    + ["--fd-eps", "1e-7"],
+    + ["--fd-eps", "2e-6"],
     # the tiny SMIB + SEXS + IEEEST case of the tuner's tests (its programs shared
     # through the cache with tests/test_tuning_grid.py): 4 training simulations per
     # tuner, 3 held-out faults. Kundur's cost 127 CPU-s cold, this 70
