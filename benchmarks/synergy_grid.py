@@ -50,7 +50,7 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 from _results import write_results  # noqa: E402
-from tuning_grid import cct_of  # noqa: E402
+from tuning_grid import cct_of, print_table  # noqa: E402
 
 from tuning.grid_config import check_grid_config, load_grid_config  # noqa: E402
 from tuning.grid_problem import build_grid  # noqa: E402
@@ -249,22 +249,13 @@ def main(argv=None) -> int:
             print(f"{label}: CCT {rows[label]['cct']}", file=sys.stderr, flush=True)
     timing["cct"] = {"wall_s": time.perf_counter() - t0, "cpu_s": cpu_seconds() - c0}
 
-    print(f"\nkundur: held-out Monte Carlo of {args.n} scenarios (seed {args.seed})")
-    print(
-        f"{'set':<40}"
-        + "".join(f"{k:>27}" for k in KEYS)
-        + "".join(f"{'CCT bus ' + str(b):>14}" for b in buses)
+    print_table(
+        f"kundur: held-out Monte Carlo of {args.n} scenarios (seed {args.seed})",
+        rows,
+        KEYS,
+        buses,
+        width=40,
     )
-    for label, r in rows.items():
-        cct = [r.get("cct", {}).get(str(b), "-") for b in buses]
-        print(
-            f"{label:<40}"
-            + "".join(f"{r[k]:>27.4f}" for k in KEYS)
-            + "".join(
-                f"{'> 1' if c is None else (c if c == '-' else f'{c:.3f}'):>14}"
-                for c in cct
-            )
-        )
     for k, t in timing.items():
         print(f"{k}: {json.dumps(t)}")
     write_results(

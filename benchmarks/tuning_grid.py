@@ -228,6 +228,29 @@ def plot(path, case_name: str, rows: dict, buses) -> None:
     save_figure(fig, path)
 
 
+def _cct_text(c) -> str:
+    """A CCT cell: s to the ms, '> 1' for a stable 1 s fault (None), '-' as given."""
+    return "> 1" if c is None else (c if c == "-" else f"{c:.3f}")
+
+
+def print_table(title: str, rows: dict, keys, buses, width: int = 28) -> None:
+    """The held-out table: one row per set, the `keys` columns, then the CCT at each
+    of `buses` ('-' where a set has none)."""
+    print(f"\n{title}")
+    print(
+        f"{'set':<{width}}"
+        + "".join(f"{k:>27}" for k in keys)
+        + "".join(f"{'CCT bus ' + str(b):>14}" for b in buses)
+    )
+    for label, r in rows.items():
+        cct = [r.get("cct", {}).get(str(b), "-") for b in buses]
+        print(
+            f"{label:<{width}}"
+            + "".join(f"{r[k]:>27.4f}" for k in keys)
+            + "".join(f"{_cct_text(c):>14}" for c in cct)
+        )
+
+
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--config", default=str(ROOT / "tuning/configs/kundur_pss.toml"))
@@ -367,19 +390,12 @@ def main(argv=None) -> int:
         "worst_inter_area_damping",
         "worst_oscillatory_damping",
     )
-    print(f"\n{problem.case.name}: held-out Monte Carlo of {args.n} scenarios")
-    print(
-        f"{'set':<28}"
-        + "".join(f"{k:>27}" for k in keys)
-        + "".join(f"{'CCT bus ' + str(b):>14}" for b in buses)
+    print_table(
+        f"{problem.case.name}: held-out Monte Carlo of {args.n} scenarios",
+        rows,
+        keys,
+        buses,
     )
-    for label, r in rows.items():
-        cct = [r["cct"][str(b)] for b in buses]
-        print(
-            f"{label:<28}"
-            + "".join(f"{r[k]:>27.4f}" for k in keys)
-            + "".join(f"{'> 1' if c is None else f'{c:.3f}':>14}" for c in cct)
-        )
     for k, t in timing.items():
         print(f"{k}: {json.dumps(t)}")
     name = f"tuning_grid_{problem.case.name}"

@@ -232,3 +232,27 @@ def test_montecarlo_on_a_case_rows_match_single_runs_and_not_the_chunk(tmp_path)
                 )
     # the draw covers both verdicts, so the stable column is not trivially constant
     assert any(stable) and not all(stable)
+
+
+def test_cct_on_a_case_uses_the_commands_tolerances(tmp_path, monkeypatch, capsys):
+    """`cct --case` ran its bisection at the library's default tolerances whatever
+    --rtol/--atol said (compare --case passed them); both now go through one helper.
+    The solver sees the command's values, and the CCT printed is the one written."""
+    import smibjax.grid.cct as grid_cct
+
+    seen = []
+    real = grid_cct.critical_clearing_times_grid
+
+    def spy(*a, **kw):
+        seen.append(kw)
+        return real(*a, **kw)
+
+    monkeypatch.setattr(grid_cct, "critical_clearing_times_grid", spy)
+    out = tmp_path / "cct.json"
+    argv = ["cct", "--case", "smib-gencls", "--fault-buses", "2", "--t-end", "2"]
+    argv += ["--rtol", "1e-7", "--atol", "1e-9", "--tol", "0.01", "--out", str(out)]
+    assert main(argv) == 0
+    assert [(k["rtol"], k["atol"], k["tol"]) for k in seen] == [(1e-7, 1e-9, 0.01)]
+    data = json.loads(out.read_text())
+    printed = capsys.readouterr().out
+    assert f"{data['cct']['2']:.4f}" in printed

@@ -572,7 +572,6 @@ def run_cct(args) -> int:
     --fault-buses (cleared without tripping), by bisection to --tol, all buses in
     one batch per bisection step."""
     from .._files import check_new_file, write_json
-    from ..grid.cct import critical_clearing_times_grid
 
     out = check_new_file(args.out, args.force, "--out") if args.out else None
     case, op, pf = load(args)
@@ -580,20 +579,9 @@ def run_cct(args) -> int:
         buses = _int_list(args.fault_buses) or [
             int(b) for b in np.asarray(case.system.buses.number)
         ]
-        from .._commandline import announce_compile
-
-        with announce_compile("the batched CCT bisection"):
-            res = critical_clearing_times_grid(
-                case,
-                op,
-                buses,
-                t_fault=args.fault_time,
-                t_max=args.cct_max,
-                tol=args.tol,
-                t_end=args.t_end,
-            )
     except ValueError as e:
         raise CLIError(str(e)) from None
+    res = _bisect_cct(case, op, buses, args, args.cct_max)
     print(_describe(case, pf), file=sys.stderr)
     print(f"{'bus':>6}  CCT (s)")
     for b, c in res["cct"].items():
@@ -677,12 +665,19 @@ def case_cct(case, op, args) -> dict:
     --fault-buses (all buses by default), applied at --fault-time and removed
     without tripping, by bisection to --tol in [0, `CASE_CCT_MAX`] s over the
     --t-end horizon (`critical_clearing_times_grid`, as `cct --case`)."""
-    from .._commandline import announce_compile
-    from ..grid.cct import critical_clearing_times_grid
-
     buses = _int_list(args.fault_buses) or [
         int(b) for b in np.asarray(case.system.buses.number)
     ]
+    return _bisect_cct(case, op, buses, args, CASE_CCT_MAX)
+
+
+def _bisect_cct(case, op, buses, args, t_max: float) -> dict:
+    """`critical_clearing_times_grid` of bolted faults at `buses` applied at
+    --fault-time, bisected to --tol in [0, t_max] s over --t-end, at the command's
+    --rtol/--atol; CLIError (one line) on bad input."""
+    from .._commandline import announce_compile
+    from ..grid.cct import critical_clearing_times_grid
+
     try:
         with announce_compile("the batched CCT bisection"):
             return critical_clearing_times_grid(
@@ -690,7 +685,7 @@ def case_cct(case, op, args) -> dict:
                 op,
                 buses,
                 t_fault=args.fault_time,
-                t_max=CASE_CCT_MAX,
+                t_max=t_max,
                 tol=args.tol,
                 t_end=args.t_end,
                 rtol=args.rtol,
