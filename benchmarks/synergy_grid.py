@@ -50,21 +50,14 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 from _results import write_results  # noqa: E402
+from tuning_grid import KEYS as GRID_KEYS  # noqa: E402
 from tuning_grid import cct_of, print_table  # noqa: E402
 
 from tuning.grid_config import check_grid_config, load_grid_config  # noqa: E402
 from tuning.grid_problem import build_grid  # noqa: E402
 from tuning.grid_run import _validation_fn, run_grid, validate  # noqa: E402
 
-KEYS = (
-    "stable_fraction",
-    "settling_mean",
-    "settling_p95",
-    "worst_damping",
-    "worst_inter_area_damping",
-    "worst_oscillatory_damping",
-    "efd_max",
-)
+KEYS = (*GRID_KEYS, "efd_max")
 
 # (label, BETA, T1, ALPHA, C): the paper's gains, then BETA < 0 (a stable
 # manifold), then the weighted macro-variable C > 1 (docs/model.md section 2)
