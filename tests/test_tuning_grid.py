@@ -82,7 +82,7 @@ def _config(tmp_path, text=TINY, name="tiny.toml") -> Path:
     return p
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")  # made once per worker, whatever runs between
 def tiny_run(tmp_path_factory):
     tmp = tmp_path_factory.mktemp("grid_tune")
     cfg = _config(tmp)
