@@ -240,7 +240,7 @@ _PROBE = """
 import sys
 from smibjax.cli import main
 code = main(sys.argv[1:])
-from smibjax import _exported
+from smibjax.cli import _exported
 heavy = ("diffrax", "optimistix", "lineax", "scipy", "matplotlib")
 loaded = ",".join(m for m in heavy if m in sys.modules)
 print(f"PATH {_exported.LAST_PATH} LOADED {loaded}", file=sys.stderr)

@@ -2,7 +2,7 @@
 defaults filled in, the controller resolved, every known value checked.
 
 `simulate` calls `simulate_inputs` before it solves; the command line's warm path
-(`smibjax._exported`) calls it too, so that a run from a stored program refuses
+(`smibjax.cli._exported`) calls it too, so that a run from a stored program refuses
 exactly what a traced run refuses. This module loads equinox but not diffrax.
 """
 

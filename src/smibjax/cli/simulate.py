@@ -66,10 +66,10 @@ def add_parser(sub) -> None:
 def run(args) -> int:
     import numpy as np
 
-    from .. import _exported
     from .._files import write_npz
     from .._options import SaveOptions
     from .._parameters import Fault
+    from . import _exported
     from .plotting import plot_trajectory
     from .report import format_summary, metrics_dict
 
@@ -133,7 +133,7 @@ def run(args) -> int:
 
 PROGRAMS = ("jit__simulate", "jit_call_exported")
 """The names JAX gives the simulation's compiled program in the persistent cache:
-traced (`smibjax._simulate`) and stored (`smibjax._exported`)."""
+traced (`smibjax._simulate`) and stored (`smibjax.cli._exported`)."""
 
 
 def output(args) -> Path | None:

@@ -25,7 +25,6 @@ import hashlib
 import json
 import os
 import struct
-import tempfile
 from pathlib import Path
 from types import SimpleNamespace
 
@@ -45,8 +44,8 @@ def observe(traj):
     (`trajectory_arrays`), as JAX values: the summary's program, traced in one
     jitted function (run eagerly, its ~100 small operations compiled one kernel
     each: 1.1 s of CPU per `simulate`)."""
-    from ._metrics import metrics
-    from .cli.plotting import trajectory_arrays
+    from .._metrics import metrics
+    from .plotting import trajectory_arrays
 
     return metrics(traj), trajectory_arrays(traj, numpy=False)
 
@@ -59,7 +58,7 @@ def run(gains, fault, plant, op, init, solver, save):
     `Metrics` with NumPy values, `arrays` the npz layout as NumPy arrays. Bad
     input raises `ParameterError` before anything is computed, as `simulate` does."""
     global LAST_PATH
-    from ._inputs import simulate_inputs
+    from .._inputs import simulate_inputs
 
     inputs = simulate_inputs(gains, fault, plant, op, init, None, solver, save)
     folder = _folder()
@@ -91,7 +90,7 @@ def _traced(inputs):
     import jax
     import numpy as np
 
-    from ._simulate import _simulate
+    from .._simulate import _simulate
 
     controller, fault, plant, op, init, solver, save = inputs
     traj = _simulate(controller, fault, plant, op, init, **_statics(solver, save))
@@ -103,7 +102,7 @@ def _traced(inputs):
 def _statics(solver, save) -> dict:
     """`_simulate`'s static keywords, as `simulate` passes them for the command
     line (the default delta band, hard input limits)."""
-    from ._inputs import DEFAULT_DELTA_BAND
+    from .._inputs import DEFAULT_DELTA_BAND
 
     return {
         "t_end": float(save.t_end),
@@ -167,7 +166,7 @@ def _source_hash() -> str:
     their bytes)."""
     global _SOURCE_HASH
     if _SOURCE_HASH is None:
-        root = Path(__file__).resolve().parent
+        root = Path(__file__).resolve().parents[1]  # the smibjax package
         h = hashlib.sha256()
         for f in sorted(root.rglob("*.py")):
             h.update(f.relative_to(root).as_posix().encode() + b"\0")
@@ -222,8 +221,8 @@ def _export(inputs, leaves, treedef, static, key):
     import jax
     from jax import export
 
-    from ._metrics import Metrics
-    from ._simulate import Trajectory, _simulate
+    from .._metrics import Metrics
+    from .._simulate import Trajectory, _simulate
 
     controller, fault, plant, op, init, solver, save = inputs
     statics = _statics(solver, save)
@@ -286,22 +285,15 @@ def _read(path: Path, key: str):
 
 
 def _write(path: Path, stored) -> None:
-    """Store (header, blob, blob) at `path` atomically (a temporary file renamed
-    onto it); a folder that cannot be written is skipped."""
+    """Store (header, blob, blob) at `path` atomically (`_files.atomic_write`); a
+    folder that cannot be written is skipped (the run goes on without it)."""
+    from .._files import atomic_write
+
     header, *blobs = stored
     parts = [json.dumps(header).encode(), *blobs]
     data = FORMAT + b"".join(struct.pack("<Q", len(p)) + p for p in parts)
     try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=".tmp-", suffix=".bin")
-        try:
-            with os.fdopen(fd, "wb") as fh:
-                fh.write(data)
-            os.chmod(tmp, 0o644)  # (mkstemp's 0600: as JAX's cache files)
-            os.replace(tmp, path)
-        except BaseException:
-            Path(tmp).unlink(missing_ok=True)
-            raise
+        atomic_write(path, lambda tmp: Path(tmp).write_bytes(data), new=False)
     except OSError:
         pass
 
