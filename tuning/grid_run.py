@@ -224,8 +224,14 @@ def run_grid(
     validation; `resume` continues from the last; `stop_after` ends this call after
     that many steps (the tests' interruption)."""
     from .grid_problem import build_grid, make_step, reference
-    from .loop import Best, TrainState, load_checkpoint, save_checkpoint
-    from .outputs import write_history
+    from .loop import (
+        Best,
+        TrainState,
+        advance,
+        load_checkpoint,
+        record_validation,
+        save_checkpoint,
+    )
 
     problem, step_fn, val_fn = _compiled(cfg, build_grid, make_step)
     space = problem.space
@@ -264,13 +270,7 @@ def run_grid(
             "skipped": bool(skipped),
             "seconds": time.perf_counter() - t0,
         }
-        state = dataclasses.replace(
-            state,
-            step=k + 1,
-            raw=raw,
-            opt_state=opt_state,
-            history=[*state.history, row],
-        )
+        state = advance(state, raw, opt_state, row)
         if not quiet:
             print(
                 f"step {k + 1}/{steps}: loss {row['loss']:.4f}, stable "
@@ -280,14 +280,7 @@ def run_grid(
             )
         if (k + 1) % every == 0 or k + 1 == steps:
             v = validate(problem, raw, val_fn, held)
-            best = state.best
-            if _better(v, best.summary, target):
-                best = Best(raw=raw, step=k + 1, summary=v)
-            state = dataclasses.replace(
-                state, validation=[*state.validation, {"step": k + 1, **v}], best=best
-            )
-            save_checkpoint(out, state)
-            write_history(out, state.history)
+            state = record_validation(out, state, v, lambda a, b: _better(a, b, target))
             refs = reference(problem, raw)
             if not quiet:
                 print(

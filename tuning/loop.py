@@ -149,6 +149,37 @@ def _count(v) -> int:
     return v
 
 
+def advance(state: TrainState, raw, opt_state, row: dict) -> TrainState:
+    """`state` after one training step: its parameters, optimizer state, step
+    (`row["step"]`) and history row (the SMIB and the grid tuner alike)."""
+    return dataclasses.replace(
+        state,
+        step=row["step"],
+        raw=raw,
+        opt_state=opt_state,
+        history=[*state.history, row],
+    )
+
+
+def record_validation(
+    out: Path, state: TrainState, summary: dict, better
+) -> TrainState:
+    """`state` with the validation `summary` of its parameters at its step recorded
+    and kept as the best if `better(summary, best summary)`, then the checkpoint and
+    history.csv written (what `--resume` reads back)."""
+    best = state.best
+    if better(summary, best.summary):
+        best = Best(raw=state.raw, step=state.step, summary=summary)
+    state = dataclasses.replace(
+        state,
+        validation=[*state.validation, {"step": state.step, **summary}],
+        best=best,
+    )
+    save_checkpoint(out, state)
+    write_history(out, state.history)
+    return state
+
+
 def _better(a: dict, b: dict) -> bool:
     """Validation summary a beats b: more stable scenarios, then faster mean settling."""
 
@@ -274,25 +305,10 @@ def run(
                 "dropped": info.dropped,
                 "seconds": time.perf_counter() - t0,
             }
-            state = dataclasses.replace(
-                state,
-                step=step + 1,
-                raw=raw,
-                opt_state=opt_state,
-                history=[*state.history, row],
-            )
+            state = advance(state, raw, opt_state, row)
             if (step + 1) % every == 0 or step + 1 == steps:
                 v, _ = validate(raw)
-                best = state.best
-                if _better(v, best.summary):
-                    best = Best(raw=raw, step=step + 1, summary=v)
-                state = dataclasses.replace(
-                    state,
-                    validation=[*state.validation, {"step": step + 1, **v}],
-                    best=best,
-                )
-                save_checkpoint(out, state)
-                write_history(out, state.history)
+                state = record_validation(out, state, v, _better)
             if bar is not None:
                 last = state.validation[-1]
                 bar.set_postfix(
