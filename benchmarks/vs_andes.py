@@ -57,7 +57,7 @@ import numpy as np
 XF = 1e-4  # fault reactance (pu, system base): ANDES's default xf; rf = 0
 T_FAULT, T_CLEAR, T_END = 1.0, 1.1, 10.0
 REF_RTOL, REF_ATOL = 1e-10, 1e-12
-TARGET = {"GENCLS": 1e-3, "GENROU": 1e-2}
+TARGET = {"GENCLS": 1e-3, "GENROU": 1e-2, "mixed": 1e-2}
 
 CASES = {
     # label: (raw, dyr, machine model, fault bus)
@@ -65,10 +65,29 @@ CASES = {
     "kundur-gencls bus 7": ("kundur.raw", "kundur_gencls.dyr", "GENCLS", 7),
     "kundur GENROU bus 7": ("kundur.raw", "kundur.dyr", "GENROU", 7),
     "ieee39 GENROU bus 16": ("ieee39.raw", "ieee39.dyr", "GENROU", 16),
+    # cases shipped with ANDES (not smibjax's files; only with --cases): files that
+    # smibjax's tests never saw, read by both programs as they are
+    "andes npcc GENCLS+GENROU bus 2": (
+        "andes:npcc/npcc.raw",
+        "andes:npcc/npcc_full.dyr",
+        "mixed",
+        2,
+    ),
+    "andes wecc GENCLS bus 2": (
+        "andes:wecc/wecc.raw",
+        "andes:wecc/wecc_gencls.dyr",
+        "GENCLS",
+        2,
+    ),
 }
 
 
 def case_path(name: str) -> str:
+    """A built-in case's file, or with the prefix "andes:" a file of ANDES's cases."""
+    if name.startswith("andes:"):
+        import andes
+
+        return str(Path(andes.__file__).parent / "cases" / name[len("andes:") :])
     from smibjax.grid.cases import case_file
 
     return str(case_file(name))
@@ -89,7 +108,8 @@ def andes_run(
     t_end: float = T_END,
 ):
     """One ANDES 2.0 run of a bus fault through j XF from t_on to t_off (s): returns
-    (t (s), delta (T, n_gen) rad with columns in ANDES's device order, machine bus
+    (t (s), delta (T, n_gen) rad with columns in ANDES's device order (model "mixed":
+    GENCLS then GENROU), machine bus
     numbers, TDS seconds, whether TDS reached t_end). tstep/tol None = ANDES's
     defaults (trapezoid, 1/30 s, 1e-4)."""
     import andes
@@ -113,11 +133,19 @@ def andes_run(
     t0 = time.perf_counter()
     ss.TDS.run()
     secs = time.perf_counter() - t0
-    mdl = getattr(ss, model)
     t = np.asarray(ss.dae.ts.t)
-    delta = np.asarray(ss.dae.ts.x)[:, mdl.delta.a]
-    buses = [int(b) for b in mdl.bus.v]
-    return t, delta, buses, secs, bool(t[-1] >= t_end - 1e-9)
+    models = ("GENCLS", "GENROU") if model == "mixed" else (model,)
+    mdls = [getattr(ss, m) for m in models if getattr(ss, m).n]
+    delta = np.concatenate([np.asarray(ss.dae.ts.x)[:, m.delta.a] for m in mdls], 1)
+    # machines keyed (bus, k): the k-th machine at its bus in the raw file's order
+    # (ANDES numbers a raw file's generators in order; two machines may share a bus)
+    gen = [int(g) for m in mdls for g in m.gen.v]
+    bus_of = [int(b) for m in mdls for b in m.bus.v]
+    order = np.argsort(gen, kind="stable")
+    delta, keys = delta[:, order], []
+    for j in order:
+        keys.append((bus_of[j], sum(k[0] == bus_of[j] for k in keys)))
+    return t, delta, keys, secs, bool(t[-1] >= t_end - 1e-9)
 
 
 def _andes_scenario(arg):
@@ -143,6 +171,14 @@ def gen_buses(case) -> list[int]:
     from smibjax.grid.loop import gen_names
 
     return [int(n.split(":")[0]) for n in gen_names(case)]
+
+
+def gen_keys(case) -> list[tuple[int, int]]:
+    """(bus, k) per machine: the k-th machine at its bus, as andes_run keys them."""
+    keys = []
+    for b in gen_buses(case):
+        keys.append((b, sum(k[0] == b for k in keys)))
+    return keys
 
 
 def coi(case, delta):
@@ -173,7 +209,7 @@ def smib_tight(case, op, bus_pos, t_on, t_off, dt_save=1e-3):
 def compare(case, ts, d_ref, t_a, d_a, a_buses, t_stop=np.inf):
     """max over t <= min(t_stop, ANDES's end) of |COI angle difference| per machine,
     the smibjax reference interpolated (1 ms samples) at ANDES's times."""
-    order = [a_buses.index(b) for b in gen_buses(case)]
+    order = [a_buses.index(k) for k in gen_keys(case)]
     d_a = d_a[:, order]
     keep = (t_a <= t_stop) & np.isfinite(d_a).all(axis=1)
     t_a, d_a = t_a[keep], d_a[keep]
@@ -225,7 +261,7 @@ def accuracy(args) -> dict:
                 row["initial_coi_diff_rad"] = float(
                     np.abs(
                         coi(case, d_ref[0])
-                        - coi(case, d_a[0, [a_buses.index(b) for b in gen_buses(case)]])
+                        - coi(case, d_a[0, [a_buses.index(k) for k in gen_keys(case)]])
                     ).max()
                 )
             print(

@@ -432,10 +432,18 @@ MUTANTS = [
     Mutant(
         "pf-q-shared-equally",
         "src/smibjax/grid/powerflow.py",
-        "q_shared = jnp.where(ok[gbus], on * qmin_ok + part, q_equal)",
-        "q_shared = q_equal",
+        "q_several = q_case + jnp.where(ok_rest[gbus], rest_rng, rest_eq)",
+        "q_several = q_case + rest_eq",
         (PF + "test_generators_share_their_bus",),
         "a bus's Q shared equally, not by the generators' ranges",
+    ),
+    Mutant(
+        "pf-q-ignores-case-q",
+        "src/smibjax/grid/powerflow.py",
+        "q_shared = jnp.where(several[gbus], q_several, q_one)",
+        "q_shared = q_one",
+        (PF + "test_generators_on_one_bus_keep_the_case_q",),
+        "machines on one bus re-shared by range, the case's own q ignored",
     ),
     Mutant(
         "pf-flat-is-case",

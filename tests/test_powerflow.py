@@ -355,17 +355,36 @@ def test_wscc9_matches_the_published_solution(solved):
 
 
 def test_generators_share_their_bus(solved):
-    """Bus 20's two generators sit at the same fraction of their Q ranges; the slack
-    generator takes the slack; the PQ bus's generator its schedule; the one out of
-    service nothing."""
+    """Bus 20's two generators (case q = 0) share its Q in proportion to their Q
+    ranges (1.5 and 0.6 pu); the slack generator takes the slack; the PQ bus's
+    generator its schedule; the one out of service nothing."""
     res = solved["5"]
     q = np.asarray(res.q_gen)
-    f1, f2 = (q[1] + 0.5) / 1.5, (q[2] + 0.2) / 0.6
-    assert f1 == pytest.approx(f2, abs=1e-12) and 0 < f1 < 1
+    assert q[1] / 1.5 == pytest.approx(q[2] / 0.6, abs=1e-12) and q[1] != 0
     np.testing.assert_allclose(
         np.asarray(res.p_gen), [float(res.p_slack), 0.25, 0.15, 0.10, 0.0]
     )
     assert q[3] == 0.03 and q[4] == 0.0
+
+
+def test_generators_on_one_bus_keep_the_case_q(solved):
+    """With the case's own q at bus 20 (a solved case's machine outputs), each machine
+    keeps it plus a range-proportional share of the difference to the bus's Q: on
+    case q that already sum to the bus's Q, exactly the case's values. The network
+    solution does not depend on the split."""
+    res = solved["5"]
+    q_bus = float(res.q_gen[1] + res.q_gen[2])
+    system = meshed5()
+    split = np.array([0.8, 0.2]) * q_bus  # not the range proportion (5:2)
+    for q_case, want in (
+        (split, split),  # a solved case: kept
+        (split - 0.07, split - 0.07 + 0.14 * np.array([1.5, 0.6]) / 2.1),
+    ):
+        q = np.array(system.generators.q, dtype=float)
+        q[1:3] = q_case
+        s2 = solve_power_flow(eqx.tree_at(lambda s: s.generators.q, system, q))
+        np.testing.assert_allclose(np.asarray(s2.q_gen)[1:3], want, rtol=0, atol=1e-12)
+        np.testing.assert_allclose(s2.vm, res.vm, atol=1e-12)
 
 
 def test_a_flat_start_ignores_the_raw_file_voltages(solved):
