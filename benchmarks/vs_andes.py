@@ -79,15 +79,34 @@ CASES = {
         "GENCLS",
         2,
     ),
+    # IEEE 14 with the records smibjax reads: GENROU, EXST1 (machine 2), TGOV1; its
+    # ESST3A, ST2CUT and IEEEG1 records dropped, and the IEEEST whose exciter was an
+    # ESST3A with them (both programs read the same filtered file)
+    "andes ieee14 GENROU+EXST1+TGOV1 bus 4": (
+        "andes:ieee14/ieee14.raw",
+        "andes:ieee14/ieee14.dyr|GENROU,EXST1,TGOV1",
+        "GENROU",
+        4,
+    ),
 }
 
 
 def case_path(name: str) -> str:
-    """A built-in case's file, or with the prefix "andes:" a file of ANDES's cases."""
+    """A built-in case's file, or with the prefix "andes:" a file of ANDES's cases
+    ("andes:FILE.dyr|M1,M2": a copy of that dyr file with only the records of models
+    M1, M2, ..., written to a temporary folder)."""
     if name.startswith("andes:"):
         import andes
 
-        return str(Path(andes.__file__).parent / "cases" / name[len("andes:") :])
+        name, _, keep = name[len("andes:") :].partition("|")
+        path = Path(andes.__file__).parent / "cases" / name
+        if not keep:
+            return str(path)
+        records = path.read_text().split("/")  # a dyr record ends with "/"
+        kept = [r for r in records[:-1] if r.split()[1].strip("'") in keep.split(",")]
+        out = Path(tempfile.mkdtemp(prefix="vs_andes_dyr_")) / path.name
+        out.write_text("".join(r.rstrip() + " /\n" for r in kept))
+        return str(out)
     from smibjax.grid.cases import case_file
 
     return str(case_file(name))

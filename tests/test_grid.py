@@ -12,7 +12,7 @@ import smibjax as sj
 from smibjax.grid.case import BUILTIN, CaseError, build_case, load_case
 from smibjax.grid.devices.gencls import GENCLS
 from smibjax.grid.events import BranchClose, BranchTrip, BusFault, GenTrip, LineFault
-from smibjax.grid.loop import Case, evaluate, initialize, state_labels
+from smibjax.grid.loop import Case, evaluate, initialize, state_labels, unpack
 from smibjax.grid.metrics import grid_metrics
 from smibjax.grid.network import stage_configs, stage_matrices
 from smibjax.grid.operating import check_islanding, operating_point
@@ -286,3 +286,111 @@ def test_bad_cases_are_one_line(tmp_path):
         CaseError, match="generator '1' at bus 3 is in service but has no"
     ):
         build_case(system, records)
+
+
+# ---- measurements every controller reads (EXST1's field current, DirectField) ----
+
+EXST1_DYR = """\
+     1 'GENROU' 1   6.0  0.05  1.0  0.05  4.0  0.0  1.8  1.7  0.3  0.55  0.25  0.2  0.1  0.15 /
+     1 'EXST1'  1   0.0  5.0  -5.0  0.0  0.0  200.0  0.02  {vrmax}  -5.0  {kc}  0.0  1.0 /
+     2 'CSVGN1' 1   0.0  0.0  0.0  0.0  0.0  1.0  0.0  999.0  -999.0  5000.0 /
+     3 'GENCLS' 1   0.0  0.0 /
+"""
+
+
+def _exst1_case(tmp_path, kc, vrmax=6.0):
+    from smibjax.grid.cases import case_file
+
+    dyr = tmp_path / f"exst1_{kc}.dyr"
+    dyr.write_text(EXST1_DYR.format(kc=kc, vrmax=vrmax))
+    return load_case(case_file("smib.raw"), dyr)
+
+
+def test_every_controller_reads_only_what_the_loop_supplies():
+    """Each controller model's declared inputs are measurements every machine
+    gives, the stabilizer signal or an external command (EXST1 reads the field
+    current XadIfd: before it was a measurement, EXST1 in any case raised KeyError
+    at initialization)."""
+    from smibjax.grid import devices
+    from smibjax.grid.devices.base import AbstractController
+    from smibjax.grid.loop import MEASUREMENTS
+
+    supplied = set(MEASUREMENTS) | {"Vs", "Efd_cmd"}
+    classes = [
+        c
+        for c in vars(devices).values()
+        if isinstance(c, type) and issubclass(c, AbstractController)
+    ]
+    assert {c.__name__ for c in classes} >= {"EXST1", "SEXS", "IEEEST", "DirectField"}
+    for c in classes:
+        if getattr(c, "inputs", None) is not None:
+            assert set(c.inputs) <= supplied, c.__name__
+    for name in ("kundur", "smib", "kundur-gencls"):  # GENROU, GENTRA, GENCLS
+        case = load_case(name)
+        op, _ = operating_point(case)
+        xm = unpack(case, op, op.y0)[0]
+        for m, x, h in zip(case.machines, xm, op.held, strict=True):
+            assert set(m.measure(x, 1.0 + 0j, h, case.system.s_base)) >= set(
+                MEASUREMENTS
+            ), type(m).__name__
+
+
+@pytest.mark.parametrize("kc", [0.0, 0.3])
+def test_exst1_in_a_case_limits_by_the_field_current(tmp_path, kc):
+    """EXST1 on a GENROU machine: t = 0 is an exact equilibrium, the field current
+    it reads is Efd0 at rest (T'do de1q/dt = Efd - XadIfd), and with its regulator
+    state pushed above the ceiling the field voltage is VRMAX - KC XadIfd:
+    T'do de1q/dt = VRMAX - KC Efd0 - Efd0 (closed form)."""
+    case = _exst1_case(tmp_path, kc)
+    op, _ = operating_point(case)
+    mats = stage_matrices(op.grid, stage_configs(op.grid, ()))
+    dy, meas, _ = evaluate(case, op, mats, 0, op.y0)
+    assert float(jnp.max(jnp.abs(dy))) < 1e-8
+    labels = state_labels(case)
+    e1q = labels.index(("GENROU", "1:1", "e1q"))
+    reg = labels.index(("EXST1", "1:1", "Efd"))
+    efd0 = float(op.held[0]["Efd"][0])
+    assert float(meas["XadIfd"][0]) == pytest.approx(efd0, rel=1e-12)
+    dy, _, _ = evaluate(case, op, mats, 0, op.y0.at[reg].set(100.0))
+    tdop = float(case.machines[0].Tdop[0])
+    assert float(dy[e1q]) * tdop == pytest.approx(6.0 - kc * efd0 - efd0, rel=1e-9)
+
+
+def test_exst1_case_runs_a_fault(tmp_path):
+    """A fault at the SVC bus on the EXST1 case (KC = 0.3, VRMAX = 6) is a stable,
+    finite run whose field voltage rises from 2.30 to its ceiling VRMAX - KC XadIfd
+    (5.29 here) and never above VRMAX."""
+    case = _exst1_case(tmp_path, 0.3, vrmax=6.0)
+    op, _ = operating_point(case)
+    ev = (BusFault(bus=1, t_on=0.2, t_off=0.3, r=0.0, x=0.05),)
+    tr = simulate_jit(case, op, ev, t_end=3.0, rtol=1e-8, atol=1e-10)
+    assert bool(tr.stable)
+    efd = np.asarray(tr.efd[:, 0])
+    assert np.all(np.isfinite(efd))
+    assert np.all(efd <= 6.0 - 0.3 * 2.0) and efd.max() > 5.0
+
+
+def test_direct_field_in_a_case_reads_its_external_command(tmp_path):
+    """A DirectField exciter (the paper's law's input) in place of EXST1: at rest
+    with no command; with u["Efd_cmd"] = 0.4 the field voltage is Efd0 + 0.4, so
+    T'do de1q/dt = 0.4 at the rest state (closed form)."""
+    from smibjax.grid.devices.direct import DirectField
+
+    base = _exst1_case(tmp_path, 0.0)
+    case = Case(
+        system=base.system,
+        machines=base.machines,
+        controllers=(DirectField([0]),),
+        svcs=base.svcs,
+        sources=base.sources,
+        name="direct",
+    )
+    op, _ = operating_point(case)
+    mats = stage_matrices(op.grid, stage_configs(op.grid, ()))
+    dy, _, _ = evaluate(case, op, mats, 0, op.y0)
+    assert float(jnp.max(jnp.abs(dy))) < 1e-8
+    e1q = state_labels(case).index(("GENROU", "1:1", "e1q"))
+    u = {"Efd_cmd": jnp.array([0.4, 0.0, 0.0])}
+    dy, _, _ = evaluate(case, op, mats, 0, op.y0, u)
+    tdop = float(case.machines[0].Tdop[0])
+    assert float(dy[e1q]) * tdop == pytest.approx(0.4, rel=1e-9)

@@ -29,7 +29,7 @@ from .system import System
 
 __all__ = ["Case", "Operating", "initialize", "vector_field", "MEASUREMENTS"]
 
-MEASUREMENTS = ("delta", "omega", "Pe", "Qe", "Vt", "It", "Te")
+MEASUREMENTS = ("delta", "omega", "Pe", "Qe", "Vt", "It", "Te", "XadIfd")
 _ORDER = {"Vs": 0, "Efd": 1, "Pm": 2}
 
 
@@ -165,7 +165,10 @@ def initialize(case: Case, vm, va, p_gen, q_gen) -> Operating:
     ctrl_blocks = []
     for c, gt in zip(case.controllers, lay.controller_gen, strict=True):
         g = np.asarray(gt, dtype=np.int64)
-        local = {k: meas[k][g] for k in meas} | {"Vs": cmd["Vs"][g]}
+        local = {k: meas[k][g] for k in meas} | {
+            "Vs": cmd["Vs"][g],
+            "Efd_cmd": jnp.zeros(len(g)),
+        }
         x0, ref = c.init(cmd[c.output][g], local)
         refs.append(ref)
         ctrl_blocks.append(x0)
@@ -242,7 +245,8 @@ def evaluate(case: Case, op: Operating, mats: StageMatrices, stage, y, u=None):
     """(dy/dt, measurements over all generators, net port currents) in stage
     `stage`; the bus voltages are then Z[stage] i + c_all[stage]. `u`: optional
     additive inputs by name over all generators: "Efd" and "Pm" (added to the
-    machines' commands), "Vs" (added to the stabilizer signal the exciters read);
+    machines' commands), "Vs" (added to the stabilizer signal the exciters read),
+    "Efd_cmd" (the external command a DirectField exciter reads; 0 without it);
     "Bsvc" over all buses (added to the SVCs' external command)."""
     u = {} if u is None else u
     sys_ = case.system
@@ -291,7 +295,8 @@ def evaluate(case: Case, op: Operating, mats: StageMatrices, stage, y, u=None):
         ctl, x, ref = case.controllers[i], xc[i], op.refs[i]
         g = np.asarray(lay.controller_gen[i], dtype=np.int64)
         vs = cmd["Vs"][g] + (u["Vs"][g] if "Vs" in u else 0.0)
-        local = {k: meas[k][g] for k in meas} | {"Vs": vs}
+        efd_cmd = u["Efd_cmd"][g] if "Efd_cmd" in u else jnp.zeros(len(g))
+        local = {k: meas[k][g] for k in meas} | {"Vs": vs, "Efd_cmd": efd_cmd}
         cmd[ctl.output] = cmd[ctl.output].at[g].set(ctl.out(x, local, ref))
         dctrl[i] = ctl.rhs(x, local, ref)
     dm = []

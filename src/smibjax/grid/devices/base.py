@@ -96,7 +96,9 @@ class AbstractMachine(eqx.Module):
         self, x: States, v: CVec, held: dict[str, Vec], s_base: float
     ) -> dict[str, Vec]:
         """Measurements: "delta" (rad), "omega" (pu deviation), "Pe", "Qe" (pu machine
-        base, out of the terminal), "Vt" (pu), "It" (pu machine base)."""
+        base, out of the terminal), "Vt" (pu), "It" (pu machine base), "Te" (air-gap
+        torque, pu machine base), "XadIfd" (field current on the Xad base, pu: Efd at
+        rest; a classical machine gives its constant |E'|)."""
 
     @abc.abstractmethod
     def init(self, v: CVec, s: CVec, s_base: float) -> tuple[States, dict[str, Vec]]:

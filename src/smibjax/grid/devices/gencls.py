@@ -67,6 +67,9 @@ class GENCLS(AbstractMachine):
             "Vt": jnp.abs(v),
             "It": jnp.abs(i),
             "Te": jnp.real(e * jnp.conj(i)),
+            # no field circuit: the constant |E'| stands for the field current on the
+            # Xad base (what XadIfd is at rest on the other machines)
+            "XadIfd": held["Efd"] + 0.0 * x[0],
         }
 
     def rhs(self, x, v, cmd, held, s_base):

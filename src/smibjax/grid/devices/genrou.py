@@ -184,10 +184,21 @@ class GENROU(AbstractMachine):
         scale = self.mbase / s_base
         return self._emf(x) * y_m * scale, y_m * scale
 
+    def _xad_ifd(self, x, i_d, se, psi2d):
+        """XadIfd: the field current on the Xad base (pu), the d-axis rotor circuit's
+        drive in T'do de1q/dt = Efd - XadIfd (equal to Efd at rest)."""
+        e1q, e2d = x[2], x[4]
+        gd1, _, gd2, _, _ = self._gammas()
+        xad_ifd = e1q + (self.xd - self.xdp) * (gd1 * i_d - gd2 * e2d + gd2 * e1q)
+        return xad_ifd + se * psi2d
+
     def measure(self, x, v, held, s_base):
         e = self._emf(x)
         i = (e - v) / self._z()  # machine base
         s = v * jnp.conj(i)
+        psi2d, psi2q = self._psi2(x)
+        i_d, _ = to_dq(i, x[0])
+        se = self._se(jnp.sqrt(psi2d**2 + psi2q**2))
         return {
             "delta": x[0],
             "omega": x[1],
@@ -196,6 +207,7 @@ class GENROU(AbstractMachine):
             "Vt": jnp.abs(v),
             "It": jnp.abs(i),
             "Te": jnp.real(e * jnp.conj(i)),
+            "XadIfd": self._xad_ifd(x, i_d, se, psi2d),
         }
 
     def rhs(self, x, v, cmd, held, s_base):
@@ -206,8 +218,7 @@ class GENROU(AbstractMachine):
         i = (e - v) / self._z()
         i_d, i_q = to_dq(i, delta)
         se = self._se(jnp.sqrt(psi2d**2 + psi2q**2))
-        xad_ifd = e1q + (self.xd - self.xdp) * (gd1 * i_d - gd2 * e2d + gd2 * e1q)
-        xad_ifd = xad_ifd + se * psi2d
+        xad_ifd = self._xad_ifd(x, i_d, se, psi2d)
         xaq_i1q = e1d + (self.xq - self.xqp) * (gq2 * e1d - gq2 * e2q - gq1 * i_q)
         xaq_i1q = xaq_i1q + gqd * se * psi2q
         te = psi2q * i_d + psi2d * i_q

@@ -136,7 +136,14 @@ class GENTRA(AbstractMachine):
             "Vt": jnp.abs(v),
             "It": jnp.abs(i),
             "Te": x[2] * iq,
+            "XadIfd": self._xad_ifd(x, to_dq(i, x[0])[0]),
         }
+
+    def _xad_ifd(self, x, i_d):
+        """XadIfd: the field current on the Xad base (pu), T'do de1q/dt = Efd -
+        XadIfd (equal to Efd at rest)."""
+        e1q = x[2]
+        return e1q + (self.xd - self.xdp) * i_d + self._se(e1q) * e1q
 
     def _se(self, psi):
         return saturation_factor(psi, self.S10, self.S12, self.saturation)
