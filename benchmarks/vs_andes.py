@@ -82,6 +82,10 @@ CASES = {
     # IEEE 14 with the records smibjax reads: GENROU, EXST1 (machine 2), TGOV1; its
     # ESST3A, ST2CUT and IEEEG1 records dropped, and the IEEEST whose exciter was an
     # ESST3A with them (both programs read the same filtered file)
+    # smibjax's Kundur files with mechanical damping D = 2 pu power / pu speed on
+    # every machine (PSS/E's GENCLS and GENROU D; a copy of the dyr file)
+    "kundur-gencls D=2 bus 8": ("kundur.raw", "kundur_gencls.dyr|D=2", "GENCLS", 8),
+    "kundur GENROU D=2 bus 7": ("kundur.raw", "kundur.dyr|D=2", "GENROU", 7),
     "andes ieee14 GENROU+EXST1+TGOV1 bus 4": (
         "andes:ieee14/ieee14.raw",
         "andes:ieee14/ieee14.dyr|GENROU,EXST1,TGOV1",
@@ -109,7 +113,23 @@ def case_path(name: str) -> str:
         return str(out)
     from smibjax.grid.cases import case_file
 
-    return str(case_file(name))
+    name, _, damping = name.partition("|D=")
+    if not damping:
+        return str(case_file(name))
+    # the D of every GENCLS (2nd CON) and GENROU (6th CON) record set to `damping`
+    out, tok = [], []
+    for line in case_file(name).read_text().splitlines():
+        body, end, _ = line.partition("/")  # a record ends with "/", then a comment
+        tok += body.split()
+        if end:
+            k = {"'GENCLS'": 1, "'GENROU'": 5}.get(tok[1])
+            if k is not None:
+                tok[3 + k] = damping
+            out.append(" ".join(tok))
+            tok = []
+    path = Path(tempfile.mkdtemp(prefix="vs_andes_dyr_")) / Path(name).name
+    path.write_text("".join(f"{r} /\n" for r in out))
+    return str(path)
 
 
 # ---------------------------------------------------------------- ANDES side
