@@ -86,6 +86,21 @@ CASES = {
     # every machine (PSS/E's GENCLS and GENROU D; a copy of the dyr file)
     "kundur-gencls D=2 bus 8": ("kundur.raw", "kundur_gencls.dyr|D=2", "GENCLS", 8),
     "kundur GENROU D=2 bus 7": ("kundur.raw", "kundur.dyr|D=2", "GENROU", 7),
+    # the fault cleared by opening a line, and a generator trip (ANDES Toggle)
+    "kundur GENROU bus 7, line 7-8 opened": (
+        "kundur.raw",
+        "kundur.dyr",
+        "GENROU",
+        7,
+        (("line", 7, 8, 0, T_CLEAR),),
+    ),
+    "kundur GENROU bus 7, G2 tripped at 1.5 s": (
+        "kundur.raw",
+        "kundur.dyr",
+        "GENROU",
+        7,
+        (("gen", 2, 0, 1.5),),
+    ),
     "andes ieee14 GENROU+EXST1+TGOV1 bus 4": (
         "andes:ieee14/ieee14.raw",
         "andes:ieee14/ieee14.dyr|GENROU,EXST1,TGOV1",
@@ -145,8 +160,11 @@ def andes_run(
     tstep: float | None = None,
     tol: float | None = None,
     t_end: float = T_END,
+    trips=(),
 ):
-    """One ANDES 2.0 run of a bus fault through j XF from t_on to t_off (s): returns
+    """One ANDES 2.0 run of a bus fault through j XF from t_on to t_off (s), and
+    `trips` (see `CASES`: ("line", from bus, to bus, k-th such line, t) or ("gen",
+    bus, k-th machine there, t)) as ANDES Toggles: returns
     (t (s), delta (T, n_gen) rad with columns in ANDES's device order (model "mixed":
     GENCLS then GENROU), machine bus
     numbers, TDS seconds, whether TDS reached t_end). tstep/tol None = ANDES's
@@ -156,6 +174,21 @@ def andes_run(
     andes.config_logger(stream_level=50)
     ss = andes.load(raw, addfile=dyr, setup=False, no_output=True, default_config=True)
     ss.add("Fault", dict(bus=bus, tf=t_on, tc=t_off, xf=XF, rf=0.0))
+    for kind, a, b, *rest in trips:
+        if kind == "line":
+            k, t = rest
+            idx = [
+                i
+                for i, f, to in zip(ss.Line.idx.v, ss.Line.bus1.v, ss.Line.bus2.v)
+                if {int(f), int(to)} == {a, b}
+            ][k]
+            ss.add("Toggle", dict(model="Line", dev=idx, t=t))
+        else:  # ("gen", bus, k, t): the k-th machine at bus, GENROU or GENCLS
+            t = rest[0]
+            m = "GENROU" if ss.GENROU.n else "GENCLS"
+            mdl = getattr(ss, m)
+            idx = [i for i, bb in zip(mdl.idx.v, mdl.bus.v) if int(bb) == a][b]
+            ss.add("Toggle", dict(model=m, dev=idx, t=t))
     ss.setup()
     for k, v in dict(
         pq2z=1, p2p=0.0, p2i=0.0, p2z=1.0, q2q=0.0, q2i=0.0, q2z=1.0
@@ -228,14 +261,38 @@ def coi(case, delta):
     return delta - (delta @ w / w.sum())[..., None]
 
 
-def smib_tight(case, op, bus_pos, t_on, t_off, dt_save=1e-3):
+def smib_events(case, trips):
+    """smibjax's events for `CASES` trips (BranchTrip, GenTrip)."""
+    from smibjax.grid.events import BranchTrip, GenTrip
+
+    sys_ = case.system
+    br, out = sys_.branches, []
+    num = np.asarray(sys_.buses.number)
+    keys = gen_keys(case)
+    for kind, a, b, *rest in trips:
+        if kind == "line":
+            k, t = rest
+            pos = [
+                i
+                for i in range(len(br.fr))
+                if {int(num[br.fr[i]]), int(num[br.to[i]])} == {a, b}
+                and not br.is_transformer[i]
+            ][k]
+            out.append(BranchTrip(branch=pos, t=t))
+        else:
+            out.append(GenTrip(gen=keys.index((a, b)), t=rest[0]))
+    return tuple(out)
+
+
+def smib_tight(case, op, bus_pos, t_on, t_off, dt_save=1e-3, trips=()):
     from smibjax.grid.events import BusFault
     from smibjax.grid.simulate import simulate_jit
 
     tr = simulate_jit(
         case,
         op,
-        (BusFault(bus=bus_pos, t_on=t_on, t_off=t_off, r=0.0, x=XF),),
+        (BusFault(bus=bus_pos, t_on=t_on, t_off=t_off, r=0.0, x=XF),)
+        + smib_events(case, trips),
         t_end=T_END,
         dt_save=dt_save,
         rtol=REF_RTOL,
@@ -261,14 +318,15 @@ def compare(case, ts, d_ref, t_a, d_a, a_buses, t_stop=np.inf):
 
 def accuracy(args) -> dict:
     out = {}
-    for label, (raw, dyr, model, bus) in CASES.items():
+    for label, (raw, dyr, model, bus, *trips) in CASES.items():
         if label not in args.cases:
             continue
+        trips = trips[0] if trips else ()
         raw, dyr = case_path(raw), case_path(dyr)
         case, op = smib_setup(raw, dyr)
         t0 = time.perf_counter()
         ts, d_ref, stable = smib_tight(
-            case, op, case.system.bus_index(bus), T_FAULT, T_CLEAR
+            case, op, case.system.bus_index(bus), T_FAULT, T_CLEAR, trips=trips
         )
         t_smib = time.perf_counter() - t0
         row = {
@@ -285,7 +343,7 @@ def accuracy(args) -> dict:
             ("default", None, None),
         ):
             t_a, d_a, a_buses, secs, done = andes_run(
-                raw, dyr, model, bus, T_FAULT, T_CLEAR, tstep, tol
+                raw, dyr, model, bus, T_FAULT, T_CLEAR, tstep, tol, trips=trips
             )
             err = compare(case, ts, d_ref, t_a, d_a, a_buses)
             row[f"andes_{name}"] = {
