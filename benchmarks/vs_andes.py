@@ -179,7 +179,9 @@ def andes_run(
             k, t = rest
             idx = [
                 i
-                for i, f, to in zip(ss.Line.idx.v, ss.Line.bus1.v, ss.Line.bus2.v)
+                for i, f, to in zip(
+                    ss.Line.idx.v, ss.Line.bus1.v, ss.Line.bus2.v, strict=True
+                )
                 if {int(f), int(to)} == {a, b}
             ][k]
             ss.add("Toggle", dict(model="Line", dev=idx, t=t))
@@ -187,7 +189,9 @@ def andes_run(
             t = rest[0]
             m = "GENROU" if ss.GENROU.n else "GENCLS"
             mdl = getattr(ss, m)
-            idx = [i for i, bb in zip(mdl.idx.v, mdl.bus.v) if int(bb) == a][b]
+            idx = [
+                i for i, bb in zip(mdl.idx.v, mdl.bus.v, strict=True) if int(bb) == a
+            ][b]
             ss.add("Toggle", dict(model=m, dev=idx, t=t))
     ss.setup()
     for k, v in dict(
