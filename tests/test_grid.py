@@ -363,7 +363,7 @@ def test_exst1_case_runs_a_fault(tmp_path):
     case = _exst1_case(tmp_path, 0.3, vrmax=6.0)
     op, _ = operating_point(case)
     ev = (BusFault(bus=1, t_on=0.2, t_off=0.3, r=0.0, x=0.05),)
-    tr = simulate_jit(case, op, ev, t_end=3.0, rtol=1e-8, atol=1e-10)
+    tr = simulate_jit(case, op, ev, t_end=1.0)
     assert bool(tr.stable)
     efd = np.asarray(tr.efd[:, 0])
     assert np.all(np.isfinite(efd))
