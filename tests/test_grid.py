@@ -394,3 +394,90 @@ def test_direct_field_in_a_case_reads_its_external_command(tmp_path):
     dy, _, _ = evaluate(case, op, mats, 0, op.y0, u)
     tdop = float(case.machines[0].Tdop[0])
     assert float(dy[e1q]) * tdop == pytest.approx(0.4, rel=1e-9)
+
+
+def _two_line_smib(split: float | None):
+    """A classical machine at bus 1 feeding an infinite bus 2 over line A (0.02 +
+    j0.6) and line B (j1.0), no charging; with `split`, line A is two branches
+    through a new bus 3 at that fraction of its length from bus 1."""
+    if split is None:
+        numbers, kinds = [1, 2], [2, 3]
+        fr, to, r, x = [0, 0], [1, 1], [0.02, 0.0], [0.6, 1.0]
+    else:
+        numbers, kinds = [1, 2, 3], [2, 3, 1]
+        s = split
+        fr, to = [0, 2, 0], [2, 1, 1]
+        r, x = [0.02 * s, 0.02 * (1 - s), 0.0], [0.6 * s, 0.6 * (1 - s), 1.0]
+    n, m = len(numbers), len(fr)
+    system = System(
+        buses=Buses(
+            number=numbers,
+            kind=kinds,
+            vm=np.ones(n),
+            va=np.zeros(n),
+            base_kv=np.full(n, 20.0),
+            area=np.ones(n),
+        ),
+        branches=Branches(
+            fr=fr,
+            to=to,
+            r=r,
+            x=x,
+            b=np.zeros(m),
+            tap=np.ones(m),
+            shift=np.zeros(m),
+            status=np.ones(m),
+            is_transformer=np.zeros(m),
+        ),
+        shunts=Shunts(bus=[], g=[], b=[]),
+        loads=Loads(bus=[], p=[], q=[]),
+        generators=Generators(
+            bus=[0, 1],
+            p=[0.6, 0],
+            q=[0, 0],
+            v_set=[1.02, 1],
+            qmin=[-9, -9],
+            qmax=[9, 9],
+            mbase=[100, 100],
+            status=[1, 1],
+        ),
+    )
+    machine = GENCLS(gen=[0], mbase=[100.0], H=[5.0], D=[0.0], xdp=[0.3], ra=[0.0])
+    case = Case(system=system, machines=(machine,), sources=(1,))
+    op, _ = operating_point(case)
+    return case, op
+
+
+def test_a_line_fault_at_a_fraction_is_a_bus_fault_at_that_point():
+    """A fault through 0.01 + j0.05 at 30% of line A's length equals a bus fault
+    through the same impedance at a bus inserted there (an independent network:
+    line A written as two branches); likewise the fault cleared by opening line A
+    (LineFault + BranchTrip against BusFault + a trip of the half at bus 1: the
+    other half is then a stub that carries no current)."""
+    case, op = _two_line_smib(None)
+    split_case, split_op = _two_line_smib(0.3)
+    opts = dict(t_end=2.0, rtol=1e-10, atol=1e-12)
+    fault = dict(t_on=0.2, t_off=0.35, r=0.01, x=0.05)
+    on_line = simulate_jit(case, op, (LineFault(branch=0, frac=0.3, **fault),), **opts)
+    at_bus = simulate_jit(split_case, split_op, (BusFault(bus=2, **fault),), **opts)
+    d = np.asarray(on_line.delta[:, 0]) - np.asarray(at_bus.delta[:, 0])
+    assert np.max(np.abs(d)) < 1e-8
+    assert np.ptp(np.asarray(at_bus.delta[:, 0])) > 0.3  # the fault moved it
+    opened = simulate_jit(
+        case,
+        op,
+        (LineFault(branch=0, frac=0.3, **fault), BranchTrip(branch=0, t=0.35)),
+        **opts,
+    )
+    opened_split = simulate_jit(
+        split_case,
+        split_op,
+        (
+            BusFault(bus=2, **fault),
+            BranchTrip(branch=0, t=0.35),
+        ),
+        **opts,
+    )
+    assert bool(opened.stable) and bool(opened_split.stable)
+    d = np.asarray(opened.delta[:, 0]) - np.asarray(opened_split.delta[:, 0])
+    assert np.max(np.abs(d)) < 1e-8
