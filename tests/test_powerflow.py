@@ -396,6 +396,33 @@ def test_a_flat_start_ignores_the_raw_file_voltages(solved):
     res = solve_power_flow(system, start="flat")
     np.testing.assert_allclose(res.vm, solved["5"].vm, atol=1e-12)
     np.testing.assert_allclose(res.va, solved["5"].va, atol=1e-12)
+    # the host solve from the case's voltages falls back to the flat start
+    res = solve_power_flow(system)
+    np.testing.assert_allclose(res.vm, solved["5"].vm, atol=1e-12)
+
+
+def test_a_low_voltage_solution_from_the_case_is_replaced_by_the_flat_one():
+    """A load of 0.6 + j0.2 pu behind j0.5 from a 1 pu slack has two power-flow
+    solutions, |V2| = 0.8031 and 0.3938 pu (roots of |V|^4 - (1 - 2 Q X)|V|^2 +
+    (P^2 + Q^2) X^2 = 0). Newton from the raw file's 0.2 pu lands on the low one;
+    the host solve keeps the flat start's high one."""
+    system = _system(
+        [1, 2],
+        [SLACK, PQ],
+        [(1, 2, 0.0, 0.5, 0.0, 1.0, 0.0, 1)],
+        [(2, 0.6, 0.2)],
+        [(1, 0.0, 0.0, 1.0, -9, 9, 100, 1)],
+        vm=np.array([1.0, 0.2]),
+        va=np.array([0.0, -0.5]),
+    )
+    a, b = 1 - 2 * 0.2 * 0.5, (0.6**2 + 0.2**2) * 0.5**2
+    hi, lo = (
+        np.sqrt((a + np.sqrt(a * a - 4 * b)) / 2),
+        np.sqrt((a - np.sqrt(a * a - 4 * b)) / 2),
+    )
+    low = power_flow(system, start="case")
+    assert bool(low.converged) and float(low.vm[1]) == pytest.approx(lo, abs=1e-10)
+    assert float(solve_power_flow(system).vm[1]) == pytest.approx(hi, abs=1e-10)
 
 
 # ---- (d) implicit derivatives ----

@@ -294,6 +294,26 @@ def test_three_winding_out_of_service(tmp_path):
     assert s.buses.kind[4] == 4  # the star point of an out-of-service transformer
 
 
+def test_a_star_leg_of_zero_impedance_is_a_tie(tmp_path):
+    """W1 with Z31 = Z12 + Z23 (on the system base: 0.005 + j0.2) has a star leg 2
+    of zero impedance (it was refused), read as a tie of j ZERO_Z (1e-4 pu, a finite
+    admittance); the other two legs as the formula gives them."""
+    w1 = " 2.00000E-3, 1.00000E-1,   200.00, 4.00000E-3, 1.50000E-1,   100.00, 3.00000E-3,"
+    text = THREE.read_text()
+    assert w1 in text
+    text = text.replace(w1, w1.replace("3.00000E-3,", "5.00000E-3,"))
+    (tmp_path / "tie.raw").write_text(text)
+    s = psse.to_system(psse.read_raw(tmp_path / "tie.raw"))
+    br = s.branches
+    assert (br.r[1], br.x[1]) == (0.0, psse.ZERO_Z) and psse.ZERO_Z == 1e-4
+    z12, z23, z31 = complex(0.002, 0.1) / 2, complex(0.004, 0.15), complex(0.005, 0.2)
+    np.testing.assert_allclose(
+        [br.r[0] + 1j * br.x[0], br.r[2] + 1j * br.x[2]],
+        [(z12 + z31 - z23) / 2, (z23 + z31 - z12) / 2],
+        rtol=1e-14,
+    )
+
+
 # ---------------------------------------------------------------- raw errors
 
 
@@ -401,12 +421,6 @@ RAW_ERRORS = [
         HEAD + BUSES + TO_XF + "1, 2, 1, '1', 1, 1, 1, 0, 0, 2, '', 5\n"
         "0.0, 0.1, , 0.0, 0.1, , 0.0, 0.1\n1.0\n1.0\n1.0\n",
         "{f}:11: transformer field STAT: 5 is not one of 0, 1, 2, 3, 4",
-    ),
-    (
-        HEAD + BUSES + TO_XF + "1, 2, 1, '1'\n0.0, 0.1, , 0.0, 0.2, , 0.0, 0.1\n"
-        "1.0\n1.0\n1.0\n",
-        "{f}:12: transformer field X1-2: the star impedance of winding 1 is zero "
-        "(R = X = 0 is not supported)",
     ),
     (
         HEAD + BUSES + TO_XF + "1, 2, 0, '1', 1, 1, 1, 0, 0, 2, '', 2\n"

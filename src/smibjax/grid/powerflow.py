@@ -55,6 +55,8 @@ __all__ = [
     "scale_operating_point",
 ]
 
+LOW_V = 0.5  # pu: below it a solution from the case's voltages is tried again flat
+
 Start = Literal["case", "flat"]
 
 
@@ -309,9 +311,20 @@ def solve_power_flow(
 ) -> PowerFlowResult:
     """`power_flow` on the host (one compile per case shape): checks the data
     and raises `PowerFlowError` with one line naming the largest mismatch (pu, MW or
-    Mvar) and its bus number if Newton does not converge."""
+    Mvar) and its bus number if Newton does not converge.
+
+    From the case's voltages (`start="case"`), when Newton fails there or lands on
+    a low-voltage solution (some |V| below LOW_V = 0.5 pu: an unsolved raw file's
+    voltages can lead it to the power flow's other, inoperable branch), Newton runs
+    again from a flat start, whose solution is kept if it converged with a higher
+    lowest voltage."""
     _check(system)
     res = power_flow(system, start=start, tol=tol, max_iter=max_iter)
+    low = lambda r: float(jnp.min(r.vm))  # noqa: E731
+    if start == "case" and (not bool(res.converged) or low(res) < LOW_V):
+        flat = power_flow(system, start="flat", tol=tol, max_iter=max_iter)
+        if bool(flat.converged) and (not bool(res.converged) or low(flat) > low(res)):
+            res = flat
     if not bool(res.converged):
         m = float(res.mismatch)
         what, unit = ("Q", "Mvar") if bool(res.mismatch_is_q) else ("P", "MW")

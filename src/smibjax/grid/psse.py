@@ -36,6 +36,8 @@ __all__ = [
     "to_system",
 ]
 
+ZERO_Z = 1e-4  # pu: the impedance of a tie (a star leg of zero impedance)
+
 
 class PsseError(ValueError):
     """A PSS/E file this reader refuses; the message is one line,
@@ -600,17 +602,15 @@ def _three_winding(r: dict, vb: tuple, sbase: float, where: str):
     PSS/E's model (POM 33, three-winding transformer data): winding w is bus w, an
     ideal transformer t_w e^{j ANGw} : 1, the star impedance Z_w, the star point;
     Z_1 = (Z12 + Z31 - Z23) / 2, Z_2 = (Z12 + Z23 - Z31) / 2,
-    Z_3 = (Z23 + Z31 - Z12) / 2, each Z_ij on the system base.
+    Z_3 = (Z23 + Z31 - Z12) / 2, each Z_ij on the system base; a zero Z_w (|Z_w| <
+    1e-12 pu) is a tie of j ZERO_Z.
     """
     z12, z23, z31 = (_impedance(r, p, sbase, where) for p in ("1-2", "2-3", "3-1"))
     zs = ((z12 + z31 - z23) / 2, (z12 + z23 - z31) / 2, (z23 + z31 - z12) / 2)
     legs = []
     for w, z in zip("123", zs, strict=True):
-        if z == 0:
-            raise PsseError(
-                f"{where}: transformer field X1-2: the star impedance of winding {w} "
-                "is zero (R = X = 0 is not supported)"
-            )
+        if abs(z) < 1e-12:  # zero up to the rounding of the three pair impedances
+            z = complex(0.0, ZERO_Z)  # a tie
         legs.append(
             (z.real, z.imag, _ratio(r, w, vb[int(w) - 1]), math.radians(r["ANG" + w]))
         )
@@ -631,6 +631,10 @@ def to_system(raw: RawData) -> System:
     - fixed shunts (GL + j BL) / SBASE, switched shunts j BINIT / SBASE;
     - line-end shunts GI + j BI, GJ + j BJ of in-service branches become shunts at
       their buses; a transformer's magnetizing admittance becomes a shunt at bus I;
+    - a three-winding transformer's star leg of zero impedance (Z12 + Z23 = Z31 and
+      its rotations) is a tie of impedance j ZERO_Z = 1e-4 pu (PSS/E's zero-impedance
+      threshold THRSHZ; PSS/E merges the two buses, ANDES adds 1e-8 to r and x); a
+      branch record with R = X = 0 is refused;
     - two-winding transformers: one branch (`_transformer`); three-winding
       transformers: a star point bus (number: one above the largest bus number, in
       file order; type 1, or 4 when the transformer is out of service; VMSTAR,
