@@ -215,7 +215,9 @@ class _DCExciter(AbstractController):
         vi = ref[0] - vm - vf + meas["Vs"]
         y, dll = leadlag(x[1], vi, self.TC, self.TB)
         lo, hi = self._limits(meas)
-        vr, dvr = lag_nonwindup(x[2], y, self.KA, self.TA, lo, hi)
+        vr, dvr = lag_nonwindup(
+            x[2], y, self.KA, self.TA, lo, hi, moving=self.vt_limits
+        )
         defd = (vr - ref[1] * x[3] - self._se_efd(x[3])) / self.TE
         return jnp.stack([dvm, dll, dvr, defd, dxf])
 
