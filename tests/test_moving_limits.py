@@ -238,3 +238,36 @@ def test_andes_ieeex1_limiter_keeps_constant_limits():
     la = ss.IEEEX1.LA
     assert (la.upper.name, la.lower.name) == ("VRTMAX", "VRTMIN")
     assert (la.lim.upper.name, la.lim.lower.name) == ("VRMAX", "VRMIN")
+
+
+def test_sweeping_rule_gradient_through_the_solve_matches_finite_differences():
+    """d y(1.03 s)/d T through the adaptive solve (the state swept down the falling
+    ceiling, then released at T_REV1): finite, and equal to central differences."""
+
+    def y_at(Tl):
+        def f(t, x, args):
+            lo, hi = VRMIN * vt(t), VRMAX * vt(t)
+            return lag_nonwindup(x, demand(t), K, Tl, lo, hi, True)[1]
+
+        sol = diffrax.diffeqsolve(
+            diffrax.ODETerm(f),
+            diffrax.Tsit5(),
+            0.0,
+            1.03,
+            1e-3,
+            jnp.array(1.0),
+            stepsize_controller=diffrax.PIDController(
+                rtol=1e-8, atol=1e-10, jump_ts=jnp.asarray([T_PUSH, 0.5, 0.7, T_REV1])
+            ),
+            max_steps=100_000,
+        )
+        return sol.ys[-1]
+
+    g = float(jax.grad(y_at)(T))
+    h = 1e-5
+    fd = float((y_at(T + h) - y_at(T - h)) / (2 * h))
+    assert np.isfinite(g)
+    # released from 2 at T_REV1 towards 1: y = 1 + e^{-s/T}, dy/dT = s/T^2 e^{-s/T}
+    s = 0.03
+    assert g == pytest.approx(s / T**2 * np.exp(-s / T), rel=2e-2)
+    assert g == pytest.approx(fd, rel=1e-4)
