@@ -172,6 +172,52 @@ def smib_vs_smib(case, ts, d, ts_ref, d_ref):
     return float(np.abs(coi(case, d[ok]) - coi(case, d_ref[ok])).max())
 
 
+def jvp_cost(repeat: int = 2000) -> dict:
+    """Option (a)'s price: the IEEE 39 vector field (fault on) against the same with
+    dVt/dt, the jvp of the network evaluation along dy/dt; best of 15 loops of
+    `repeat` calls, microseconds per call (wall)."""
+    import jax
+    from vs_andes import T_CLEAR, T_FAULT, XF, case_path, smib_setup
+
+    from smibjax.grid.events import BusFault
+    from smibjax.grid.loop import evaluate
+    from smibjax.grid.network import stage_configs, stage_matrices
+
+    case, op = smib_setup(case_path(RAW), case_path(DYR))
+    ev = (
+        BusFault(
+            bus=case.system.bus_index(BUS), t_on=T_FAULT, t_off=T_CLEAR, r=0.0, x=XF
+        ),
+    )
+    mats = stage_matrices(op.grid, stage_configs(op.grid, ev))
+    y = op.y0 + 1e-3 * np.sin(np.arange(op.y0.size))
+
+    @jax.jit
+    def f(y):
+        return evaluate(case, op, mats, 1, y)[0]
+
+    @jax.jit
+    def f_dvt(y):
+        dy = evaluate(case, op, mats, 1, y)[0]
+        vt = jax.jvp(lambda z: evaluate(case, op, mats, 1, z)[1]["Vt"], (y,), (dy,))
+        return dy, vt[1]
+
+    def best(g):
+        jax.block_until_ready(g(y))
+        out = np.inf
+        for _ in range(15):
+            t0 = time.perf_counter()
+            for _ in range(repeat):
+                r = g(y)
+            jax.block_until_ready(r)
+            out = min(out, (time.perf_counter() - t0) / repeat)
+        return out * 1e6
+
+    a, b = best(f), best(f_dvt)
+    print(f"  vector field {a:.1f} us, with dVt/dt by jvp {b:.1f} us ({b / a:.2f}x)")
+    return {"vector_field_us": a, "with_dvt_dt_us": b, "ratio": b / a}
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--rtols", type=float, nargs="+", default=[1e-6, 1e-8, 1e-10])
@@ -184,6 +230,9 @@ def main(argv=None):
         default=[1e-6, 1e-8],
         help="rtols for main 0bbe1d7's held rule (none: skip it)",
     )
+    ap.add_argument(
+        "--jvp-only", action="store_true", help="only the cost of dVt/dt (option a)"
+    )
     ap.add_argument("--tag", default="")
     ap.add_argument("--out", default=str(HERE / "results"))
     args = ap.parse_args(argv)
@@ -191,8 +240,16 @@ def main(argv=None):
     from smibjax import configure
 
     configure(min_devices=1, cache=False)
-    import andes
     from _results import write_results
+
+    if args.jvp_only:
+        res = {"load_average_start": list(os.getloadavg()), "jvp_cost": jvp_cost()}
+        res["load_average_end"] = list(os.getloadavg())
+        name = f"exdc2_limits_{args.tag or 'jvp'}"
+        write_results(args.out, name, vars(args), res)
+        print(f"wrote {Path(args.out) / name}.json")
+        return
+    import andes
     from vs_andes import case_path
 
     res = {"andes": andes.__version__, "load_average_start": list(os.getloadavg())}
