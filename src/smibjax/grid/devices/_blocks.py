@@ -27,6 +27,7 @@ __all__ = [
     "nonwindup",
     "lag",
     "lag_nonwindup",
+    "sweeping",
     "leadlag",
     "washout",
     "second_order_lag",
@@ -54,11 +55,44 @@ def lag(x, u, K, T):
     return jnp.where(on, x, K * u), jnp.where(on, (K * u - x) / _safe(T), 0.0)
 
 
-def lag_nonwindup(x, u, K, T, lo, hi):
-    """K / (1 + s T) with non-windup limits [lo, hi] on its state (y = x, held at a
-    limit while K u pushes outwards); T = 0: y = clip(K u, lo, hi)."""
+# Moving limits: the state is drawn onto a limit it has crossed with the time
+# constant T / SWEEP (see `sweeping`).
+SWEEP = 30.0
+
+
+def sweeping(x, dx, lo, hi, T):
+    """dx/dt (units of x per s) of a state kept within limits [lo(t), hi(t)] that
+    move: the lag's own dx/dt, bounded to [(lo - x)/tau, (hi - x)/tau] with tau =
+    T / SWEEP (s). Continuous in x, lo and hi (no switching surface to chatter on):
+
+    - inside, farther than tau |dx| from both limits: dx unchanged;
+    - pushed onto a limit: x approaches it as a first-order lag of time constant
+      tau, and rides it, lagging a limit that moves at rate r by tau r;
+    - past a limit that has moved across it (a falling ceiling, x above hi): x is
+      drawn back to the limit at rate (hi - x)/tau, or faster if its own dx says so,
+      so it is swept along with the limit, and leaves it as soon as the input
+      reverses (PSS/E's integrate-then-clamp, ANDES `AntiWindup`'s reset, to within
+      tau times the limit's rate).
+    """
+    tau = _safe(T) / SWEEP
+    return jnp.minimum(jnp.maximum(dx, (lo - x) / tau), (hi - x) / tau)
+
+
+def lag_nonwindup(x, u, K, T, lo, hi, moving=False):
+    """K / (1 + s T) with non-windup limits [lo, hi] on its state; returns (y,
+    dx/dt), y = clip(x, lo, hi) in the units of K u. T = 0: y = clip(K u, lo, hi).
+
+    Constant limits (`moving` False): dx/dt = (K u - x)/T, zeroed while x is at (or
+    past) a limit and K u pushes outwards. Limits that move (`moving` True, or an
+    array selecting devices): `sweeping` bounds dx/dt, so that the state follows a
+    falling limit down instead of staying where the limit left it (a stale state
+    above the ceiling would hold the output at the limit after the input reverses,
+    until the state had decayed to it)."""
     on = T > 0
-    dx = nonwindup(x, (K * u - x) / _safe(T), lo, hi)
+    f = (K * u - x) / _safe(T)
+    dx = nonwindup(x, f, lo, hi)
+    if moving is not False:
+        dx = jnp.where(moving, sweeping(x, f, lo, hi, T), dx)
     y = jnp.where(on, jnp.clip(x, lo, hi), jnp.clip(K * u, lo, hi))
     return y, jnp.where(on, dx, 0.0)
 

@@ -12,10 +12,15 @@ the CONs TR, KA, TA, TB, TC, VRMAX, VRMIN, KE, TE, KF, TF1, SWITCH, E1, SE1, E2,
 Regulator limits (non-windup on VR, as PSS/E draws them on the KA/(1 + s TA) block
 and ANDES `LagAntiWindup`): IEEEX1 [VRMIN, VRMAX]; EXDC2 [VRMIN Vt, VRMAX Vt], the
 DC2 regulator being fed from the terminal bus, so its ceiling moves with the
-terminal voltage Vt (the measured, not the sensed, value). ANDES 2.0 has these the
-other way round (its IEEEX1 multiplies by Vt, its EXDC2 does not) and its EXDC2
-multiplies Efd by the speed (1 + omega); smibjax follows PSS/E and the IEEE
-reports on both points. TA = 0 makes the regulator algebraic (VR = clip(KA y)).
+terminal voltage Vt (the measured, not the sensed, value). EXDC2's moving limits
+sweep the state along (`_blocks.sweeping`: a ceiling that falls below VR draws VR
+down with it, as PSS/E's clamp and ANDES's reset do); IEEEX1's constant ones hold
+it. ANDES 2.0's sources have the scaling the other way round (its IEEEX1 defines
+VRMAX v, VRMIN v, its EXDC2 does not), but ANDES 2.0.0's IEEEX1 never hands the
+scaled bounds to its limiter (it replaces the lag's `upper`/`lower` after the lag
+built its `AntiWindup` on VRMAX/VRMIN), so in effect both its models have constant
+limits; its EXDC2 multiplies Efd by the speed (1 + omega). smibjax follows PSS/E
+and the IEEE reports. TA = 0 makes the regulator algebraic (VR = clip(KA y)).
 
 Saturation (PSS/E's for IEEEX1/EXDC2, ANDES `ExcQuadSat`), the default
 `saturation="quadratic"`:
@@ -215,7 +220,9 @@ class _DCExciter(AbstractController):
         vi = ref[0] - vm - vf + meas["Vs"]
         y, dll = leadlag(x[1], vi, self.TC, self.TB)
         lo, hi = self._limits(meas)
-        vr, dvr = lag_nonwindup(x[2], y, self.KA, self.TA, lo, hi)
+        vr, dvr = lag_nonwindup(
+            x[2], y, self.KA, self.TA, lo, hi, moving=self.vt_limits
+        )
         defd = (vr - ref[1] * x[3] - self._se_efd(x[3])) / self.TE
         return jnp.stack([dvm, dll, dvr, defd, dxf])
 
