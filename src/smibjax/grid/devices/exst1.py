@@ -127,7 +127,9 @@ class EXST1(AbstractController):
         vi = jnp.clip(ref - vm - vf + meas["Vs"], self.VIMIN, self.VIMAX)
         y, dll = leadlag(x[1], vi, self.TC, self.TB)
         lo, hi = self._limits(meas)
-        efd, defd = lag_nonwindup(x[2], y, self.KA, self.TA, lo, hi)
+        efd, defd = lag_nonwindup(
+            x[2], y, self.KA, self.TA, lo, hi, moving=self.KC != 0
+        )
         return efd, jnp.stack([dvm, dll, defd, dxf])
 
     def rhs(self, x, meas, ref):
