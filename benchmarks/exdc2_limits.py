@@ -120,33 +120,27 @@ def andes_ieee39(raw, dyr, tstep, vt_limits=False):
     and sets them as its lag's `upper`/`lower` after the lag has built its limiter,
     whose bounds stay VRMAX/VRMIN: in effect its limits are constant. `vt_limits`
     points the limiter at VRTMAX/VRTMIN (the model as its source intends)."""
-    import andes
-    from vs_andes import T_CLEAR, T_END, T_FAULT, XF
+    from vs_andes import T_CLEAR, T_FAULT, andes_run
 
-    andes.config_logger(stream_level=50)
-    ss = andes.load(raw, addfile=dyr, setup=False, no_output=True, default_config=True)
-    ss.add("Fault", dict(bus=BUS, tf=T_FAULT, tc=T_CLEAR, xf=XF, rf=0.0))
-    if vt_limits:
+    def scaled(ss):
         ss.IEEEX1.LA.lim.upper = ss.IEEEX1.VRTMAX
         ss.IEEEX1.LA.lim.lower = ss.IEEEX1.VRTMIN
-    ss.setup()
-    for k, v in dict(
-        pq2z=1, p2p=0.0, p2i=0.0, p2z=1.0, q2q=0.0, q2i=0.0, q2z=1.0
-    ).items():
-        setattr(ss.PQ.config, k, v)
-    ss.PFlow.config.tol = 1e-12
-    ss.PFlow.run()
-    ss.TDS.config.tf = T_END
-    ss.TDS.config.no_tqdm = 1
-    ss.TDS.config.tstep = tstep
-    ss.TDS.config.tol = 1e-8
-    t0 = time.perf_counter()
-    ss.TDS.run()
-    secs = time.perf_counter() - t0
-    t = np.asarray(ss.dae.ts.t)
-    d = np.asarray(ss.dae.ts.x)[:, ss.GENROU.delta.a]
-    out = {"t": t, "d": d, "buses": [int(b) for b in ss.GENROU.bus.v], "tds_s": secs}
-    out["reached_t_end"] = bool(t[-1] >= T_END - 1e-9)
+
+    keep = []
+    t, d, keys, secs, done = andes_run(
+        raw,
+        dyr,
+        "GENROU",
+        BUS,
+        T_FAULT,
+        T_CLEAR,
+        tstep,
+        1e-8,
+        before_setup=scaled if vt_limits else None,
+        keep=keep,
+    )
+    ss = keep[0]
+    out = {"t": t, "d": d, "buses": keys, "tds_s": secs, "reached_t_end": done}
     if vt_limits:  # the limiter's bounds did move: the lowest ceiling reached
         lim = np.asarray(ss.dae.ts.y)[:, ss.Bus.v.a][
             :, [list(ss.Bus.idx.v).index(b) for b in ss.IEEEX1.bus.v]

@@ -161,10 +161,14 @@ def andes_run(
     tol: float | None = None,
     t_end: float = T_END,
     trips=(),
+    before_setup=None,
+    keep=None,
 ):
     """One ANDES 2.0 run of a bus fault through j XF from t_on to t_off (s), and
     `trips` (see `CASES`: ("line", from bus, to bus, k-th such line, t) or ("gen",
-    bus, k-th machine there, t)) as ANDES Toggles: returns
+    bus, k-th machine there, t)) as ANDES Toggles; `before_setup(ss)` is called on
+    the loaded system before `ss.setup()`, and the system is appended to the list
+    `keep` after the run. Returns
     (t (s), delta (T, n_gen) rad with columns in ANDES's device order (model "mixed":
     GENCLS then GENROU), machine bus
     numbers, TDS seconds, whether TDS reached t_end). tstep/tol None = ANDES's
@@ -193,6 +197,8 @@ def andes_run(
                 i for i, bb in zip(mdl.idx.v, mdl.bus.v, strict=True) if int(bb) == a
             ][b]
             ss.add("Toggle", dict(model=m, dev=idx, t=t))
+    if before_setup is not None:
+        before_setup(ss)
     ss.setup()
     for k, v in dict(
         pq2z=1, p2p=0.0, p2i=0.0, p2z=1.0, q2q=0.0, q2i=0.0, q2z=1.0
@@ -221,6 +227,8 @@ def andes_run(
     delta, keys = delta[:, order], []
     for j in order:
         keys.append((bus_of[j], sum(k[0] == bus_of[j] for k in keys)))
+    if keep is not None:
+        keep.append(ss)
     return t, delta, keys, secs, bool(t[-1] >= t_end - 1e-9)
 
 
