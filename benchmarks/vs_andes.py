@@ -65,6 +65,7 @@ CASES = {
     "kundur-gencls bus 7": ("kundur.raw", "kundur_gencls.dyr", "GENCLS", 7),
     "kundur GENROU bus 7": ("kundur.raw", "kundur.dyr", "GENROU", 7),
     "ieee39 GENROU bus 16": ("ieee39.raw", "ieee39.dyr", "GENROU", 16),
+    "ieee39-pss GENROU bus 16": ("ieee39.raw", "ieee39_pss.dyr", "GENROU", 16),
     # cases shipped with ANDES (not smibjax's files; only with --cases): files that
     # smibjax's tests never saw, read by both programs as they are
     "andes npcc GENCLS+GENROU bus 2": (
@@ -659,7 +660,7 @@ def parse_args(argv=None):
         if getattr(args, k) is None:
             setattr(args, k, v)
     if args.cases is None:
-        args.cases = list(CASES) if args.full else list(CASES)[:1] + list(CASES)[2:3]
+        args.cases = list(CASES)[:4] if args.full else list(CASES)[:1] + list(CASES)[2:3]
     return args
 
 
