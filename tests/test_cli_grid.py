@@ -256,3 +256,32 @@ def test_cct_on_a_case_uses_the_commands_tolerances(tmp_path, monkeypatch, capsy
     data = json.loads(out.read_text())
     printed = capsys.readouterr().out
     assert f"{data['cct']['2']:.4f}" in printed
+
+
+def test_skip_unsupported_drops_the_records_with_one_warning(tmp_path, capsys):
+    """A dyr file with a record of a model smibjax lacks (ESST3A, twice) is refused
+    in one line naming it; with --skip-unsupported the command warns once and runs
+    the case without it: the same angles as the file without those records."""
+    from smibjax.grid.cases import case_file
+
+    raw = case_file("smib.raw")
+    dyr = tmp_path / "extra.dyr"
+    dyr.write_text(
+        case_file("smib_gencls.dyr").read_text()
+        + "     1 'ESST3A' 1  0.02 0.2 -0.2 /\n     3 'ESST3A' 1  1 2 3 /\n"
+    )
+    run = ["simulate", "--fault-bus", "2", "--fault-time", "0.2", "--clear-time", "0.3"]
+    run += ["--t-end", "2"]
+    base = ["--case", str(raw), "--dyr", str(dyr)]
+    out = tmp_path / "x.npz"
+    assert main([*run, *base, "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "'ESST3A' is not supported (supported: GENCLS" in err[0]
+    assert not out.exists()
+    assert main([*run, *base, "--skip-unsupported", "--out", str(out)]) == 0
+    err = capsys.readouterr().err.strip().splitlines()
+    warned = [e for e in err if e.startswith("smibjax: warning: ")]
+    assert len(warned) == 1 and "'ESST3A' is not supported" in warned[0]
+    ref = tmp_path / "ref.npz"
+    assert main([*run, "--case", "smib-gencls", "--out", str(ref)]) == 0
+    np.testing.assert_array_equal(np.load(out)["delta"], np.load(ref)["delta"])

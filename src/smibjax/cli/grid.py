@@ -28,6 +28,26 @@ __all__ = ["add_case_options", "run_simulate", "run_montecarlo", "run_cct", "loa
 GRID_CHUNK = 128
 
 
+def load_case_warning(args):
+    """`load_case` for the command line: --case, --dyr, --skip-unsupported; the
+    reader's warnings (a skipped model, a remote regulated bus) printed as one
+    "smibjax: warning: ..." line each on stderr."""
+    import warnings
+
+    from ..grid.case import load_case
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        case = load_case(
+            args.case,
+            args.dyr,
+            skip_unsupported=getattr(args, "skip_unsupported", False),
+        )
+    for w in caught:
+        print(f"smibjax: warning: {w.message}", file=sys.stderr)
+    return case
+
+
 def add_case_options(p, events: bool = True) -> None:
     """The options that choose a multi-machine case (and, for `events`, the events
     of one run)."""
@@ -41,6 +61,13 @@ def add_case_options(p, events: bool = True) -> None:
     )
     g.add_argument(
         "--dyr", metavar="FILE.dyr", help="the dyr file of a --case raw file"
+    )
+    g.add_argument(
+        "--skip-unsupported",
+        action="store_true",
+        help="skip the dyr records of models smibjax does not have (one warning per "
+        "model; an exciter or governor skipped leaves its machine's field voltage "
+        "or mechanical power constant) instead of refusing the file",
     )
     g.add_argument(
         "--param",
@@ -102,7 +129,7 @@ def _params(items) -> dict:
 def load(args):
     """(case, operating point, power flow) from the arguments; CLIError on bad
     input (one line)."""
-    from ..grid.case import CaseError, load_case
+    from ..grid.case import CaseError
     from ..grid.operating import operating_point
     from ..grid.params import ParamError, set_params
     from ..grid.powerflow import PowerFlowError
@@ -127,7 +154,7 @@ def load(args):
     if not (args.load_factor > 0 and math.isfinite(args.load_factor)):
         raise CLIError(f"--load-factor {args.load_factor} is not allowed: must be > 0")
     try:
-        case = load_case(args.case, args.dyr)
+        case = load_case_warning(args)
         params = _params(args.param)
         if params:
             case = set_params(case, params)

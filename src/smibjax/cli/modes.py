@@ -32,6 +32,12 @@ def add_parser(sub) -> None:
     )
     s.add_argument("--dyr", metavar="FILE", help="the dyr file of a raw --case")
     s.add_argument(
+        "--skip-unsupported",
+        action="store_true",
+        help="skip the dyr records of models smibjax does not have (one warning per "
+        "model) instead of refusing the file",
+    )
+    s.add_argument(
         "--set",
         action="append",
         default=[],
@@ -136,11 +142,12 @@ def _gains_file(path) -> dict:
 
 
 def _load(args):
-    from ..grid.case import CaseError, load_case
+    from ..grid.case import CaseError
     from ..grid.params import ParamError, get_param, set_params
+    from .grid import load_case_warning
 
     try:
-        case = load_case(args.case, args.dyr)
+        case = load_case_warning(args)
     except (CaseError, FileNotFoundError) as e:
         raise CLIError(f"--case {args.case!r} is not allowed: {e}") from None
     sets = {**_gains_file(args.gains), **parse_sets(args.set)}

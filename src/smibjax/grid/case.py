@@ -59,8 +59,18 @@ def case_files(name: str) -> tuple[Path, Path]:
     return Path(str(root / raw)), Path(str(root / dyr))
 
 
-def load_case(name_or_raw: str | Path, dyr: str | Path | None = None) -> Case:
-    """A built-in case by name, or a raw file with its dyr file."""
+def load_case(
+    name_or_raw: str | Path,
+    dyr: str | Path | None = None,
+    *,
+    skip_unsupported: bool = False,
+) -> Case:
+    """A built-in case by name, or a raw file with its dyr file. With
+    `skip_unsupported`, dyr records of models smibjax does not have are skipped with
+    one warning per model (`psse.read_dyr`) instead of refused: a machine whose
+    exciter or governor is skipped keeps its field voltage or mechanical power at
+    the operating point's, and a machine whose machine record is skipped is refused
+    as having no dynamic data."""
     from .psse import read_dyr, read_raw, to_system
 
     if dyr is None and str(name_or_raw) in BUILTIN:
@@ -74,7 +84,7 @@ def load_case(name_or_raw: str | Path, dyr: str | Path | None = None) -> Case:
         raw_path, dyr_path = Path(name_or_raw), Path(dyr)
         name = raw_path.stem
     system = to_system(read_raw(raw_path))
-    records = read_dyr(dyr_path)
+    records = read_dyr(dyr_path, skip_unsupported=skip_unsupported)
     return build_case(system, records, name=name)
 
 
