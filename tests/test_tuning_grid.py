@@ -217,6 +217,13 @@ BAD = [
         "power flow does not converge at load factor 20",
     ),
     (("buses = [2]", "buses = [2, 99]"), "bus 99 is not in the system"),
+    (
+        (
+            f'dyr = "{DYR.as_posix()}"',
+            f'dyr = "{DYR.as_posix()}"\nskip_unsupported = 1',
+        ),
+        "case.skip_unsupported = 1 is not allowed: must be true or false",
+    ),
 ]
 
 

@@ -32,7 +32,7 @@ from smibjax import ParameterError
 __all__ = ["GRID_DEFAULTS", "is_grid_config", "load_grid_config", "check_grid_config"]
 
 GRID_DEFAULTS: dict = {
-    "case": {"name": "", "raw": "", "dyr": "", "set": {}},
+    "case": {"name": "", "raw": "", "dyr": "", "skip_unsupported": False, "set": {}},
     "steps": 20,
     "batch": 4,
     "seed": 0,
@@ -172,6 +172,12 @@ def check_grid_config(cfg: dict) -> None:
     )
     if not c["name"]:
         _req(bool(c["raw"] and c["dyr"]), "case", c, "raw needs its dyr file")
+    _req(
+        isinstance(c["skip_unsupported"], bool),
+        "case.skip_unsupported",
+        c["skip_unsupported"],
+        "must be true or false",
+    )
     for name, v in c["set"].items():
         _req(_num(v), f"case.set.{name}", v, "must be a finite number")
     for key, lo in (("steps", 0), ("batch", 1)):

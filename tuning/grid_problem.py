@@ -104,7 +104,13 @@ def load_case_from(cfg: dict):
 
     c = cfg["case"]
     try:
-        case = load_case(c["name"]) if c["name"] else load_case(c["raw"], c["dyr"])
+        case = (
+            load_case(c["name"])
+            if c["name"]
+            else load_case(
+                c["raw"], c["dyr"], skip_unsupported=c.get("skip_unsupported", False)
+            )
+        )
     except (CaseError, OSError, ValueError) as e:
         msg = str(e).splitlines()[0] if str(e) else type(e).__name__
         raise ParameterError(f"case: {msg}") from None
