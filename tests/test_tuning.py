@@ -521,36 +521,26 @@ def test_cma_search_is_reproducible_from_its_seed():
     assert a[0] != c[0]
 
 
-def test_search_without_pycma_is_one_line_and_writes_nothing(tmp_path, monkeypatch):
+def test_search_without_pycma_is_one_line_and_writes_nothing(
+    tmp_path, monkeypatch, capsys
+):
     """The [search] stage on and pycma missing: one line naming the extra, exit 2,
-    no run folder; with the stage off (the default) the tuner does not need it."""
-    import subprocess
+    no run folder; with the stage off (the default) the tuner does not need it.
+    The command's `main()` in this process, with `import cma` failing as it does
+    where pycma is not installed (`sys.modules['cma'] = None`)."""
     import sys
-
-    from helpers import ROOT
 
     cfgfile = tmp_path / "s.toml"
     cfgfile.write_text(tiny_toml(0) + "[search]\ngenerations = 1\n")
     out = tmp_path / "run"
-    code = (
-        "import sys; sys.modules['cma'] = None\n"
-        "from tuning.optimize import main\n"
-        f"sys.exit(main(['--config', {str(cfgfile)!r}, '--out', {str(out)!r}]))"
-    )
-    r = subprocess.run(
-        [sys.executable, "-c", code],
-        cwd=ROOT,
-        env=cli_env(),
-        capture_output=True,
-        text=True,
-    )
-    assert r.returncode == 2, r.stderr
-    assert r.stderr.count("\n") == 1 and "Traceback" not in r.stderr
-    assert 'pip install -e ".[search]"' in r.stderr
-    assert "search.generations > 0" in r.stderr
+    monkeypatch.setitem(sys.modules, "cma", None)
+    assert main(["--config", str(cfgfile), "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "Traceback" not in err
+    assert 'pip install -e ".[search]"' in err
+    assert "search.generations > 0" in err
     assert not out.exists()
-    monkeypatch.setitem(sys.modules, "cma", None)  # stage off: no pycma needed
-    check_config(load_config())
+    check_config(load_config())  # stage off: no pycma needed
     cfg = load_config()
     cfg["search"]["generations"] = 1
     with pytest.raises(sj.ParameterError, match=r"\[search\]"):
