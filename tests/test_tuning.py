@@ -459,9 +459,8 @@ def _raw_quadratic(space, target):
     c = np.array([target[n] for n in names])
 
     def score(cands, faults):
-        x = np.array(
-            [[float(space.to_raw(gains_to_dict(g))[n]) for n in names] for g in cands]
-        )
+        raws = [space.to_raw(gains_to_dict(g)) for g in cands]  # once per candidate
+        x = np.array([[float(r[n]) for n in names] for r in raws])
         return np.sum((x - c) ** 2, axis=1), np.ones(len(cands))
 
     return score
