@@ -25,6 +25,10 @@ import smibjax as sj
 from helpers import STABLE
 from smibjax._losses import LossWeights, scenario_loss
 
+# one worker runs the module: its tests share the compiled objectives and the
+# module fixture `limited_case` (under -n 2 the other worker built them again)
+pytestmark = pytest.mark.xdist_group("gradients")
+
 T_END = 4.0
 T_CLEAR = 0.7037  # clearing off the 10 ms sample grid
 TS = np.round(np.arange(0.0, T_END + 1e-9, 0.01), 10)  # simulate's sample grid
