@@ -67,9 +67,11 @@ TINY = {
     # 2e-6 leaves both at least 10x inside the test's 1e-2
     "gradients": ["--batch", "1", "--t-end", "1.5", "--repeat", "1"]
     + ["--fd-eps", "2e-6"],
-    # the tiny SMIB + SEXS + IEEEST case of the tuner's tests (its programs shared
-    # through the cache with tests/test_tuning_grid.py): 4 training simulations per
-    # tuner, 3 held-out faults. Kundur's cost 127 CPU-s cold, this 70
+    # the tiny SMIB + SEXS + IEEEST case of the tuner's tests: 4 training simulations
+    # per tuner, 3 held-out faults. Kundur's cost 127 CPU-s cold, this 70-85. Its
+    # programs are NOT found by tests/test_tuning_grid.py's tiny run (measured
+    # 2026-12-02 with the script's cache, 2 or 1 host devices: the test compiled its
+    # training programs again; docs/performance.md, suite_time)
     "tuning_grid": ["--config", "tests/data/grid_tuning/tiny.toml"]
     + ["--steps", "2", "--batch", "2", "--n", "3", "--popsize", "2"],
 }

@@ -14,6 +14,10 @@ from helpers import STABLE
 from smibjax._cct import _islands, critical_clearing_times, scan_durations
 from smibjax.cli import main
 
+# one worker runs the module: its tests share the module fixture `direct` and the
+# CCT programs (under -n 2 a test on the other worker built them again)
+pytestmark = pytest.mark.xdist_group("cct")
+
 # The issue-19 case: beta = -1 under the realistic limits with realizable adaptation,
 # fault at location 0.2: stable when cleared after 0.15 s, not settled by t_end after
 # 0.20-0.35 s, stable again after 0.40 s, not settled after 0.45 s, but it never loses

@@ -8,6 +8,11 @@ import pytest
 
 from smibjax.cli import main
 
+# The tests that run smib-gencls's batch program (3 scenarios per chunk, 2 s) run on
+# one worker: they share it in memory (cold, the output-root test took 14.3 s alone
+# and 4.7 s after the compare test, 2026-12-02 at load 8).
+CASE_BATCH = pytest.mark.xdist_group("case_batch")
+
 
 def test_simulate_a_case_writes_named_arrays_and_a_plot(tmp_path, capsys):
     out, plot = tmp_path / "run.npz", tmp_path / "run.png"
@@ -100,6 +105,7 @@ def test_a_trip_that_islands_is_refused(tmp_path, capsys):
     assert "islands the system" in capsys.readouterr().err
 
 
+@CASE_BATCH
 def test_compare_a_case_against_its_parameter_sets(tmp_path, capsys):
     """Issue 28 item 7: `compare --case` runs each parameter set on the same fault
     scenarios; a machine with 4x the inertia swings less on the same faults."""
@@ -161,6 +167,7 @@ def test_compare_a_case_refuses_in_one_line(tmp_path, capsys, extra, needle):
     assert not out.exists()
 
 
+@CASE_BATCH
 def test_montecarlo_on_a_case_writes_to_the_output_root_without_out(
     tmp_path, monkeypatch
 ):
@@ -171,7 +178,8 @@ def test_montecarlo_on_a_case_writes_to_the_output_root_without_out(
     import json
 
     monkeypatch.chdir(tmp_path)
-    argv = ["montecarlo", "--case", "smib-gencls", "--n", "3", "--t-end", "1"]
+    # n = 3 (one chunk of 3) and 2 s: the batch program of the compare test below
+    argv = ["montecarlo", "--case", "smib-gencls", "--n", "3", "--t-end", "2"]
     argv += ["--fault-times", "0.2:0.3", "--clear-after", "0.05:0.1", "--seed", "2"]
     assert main(argv) == 0
     (out,) = (tmp_path / "runs").glob("montecarlo-*")
@@ -185,11 +193,12 @@ def test_montecarlo_on_a_case_writes_to_the_output_root_without_out(
     assert len(list((tmp_path / "runs").glob("montecarlo-*"))) == 2
 
 
+@CASE_BATCH
 def test_montecarlo_on_a_case_rows_match_single_runs_and_not_the_chunk(tmp_path):
     """`montecarlo --case`: every row is the metrics of its own scenario (the same
     events through `simulate_jit` + `grid_metrics`, independently), and the rows do
-    not depend on --chunk (5 scenarios in chunks of 2, the last padded, against one
-    chunk of 5)."""
+    not depend on --chunk (5 scenarios in chunks of 3, the last padded, against one
+    chunk of 5; a chunk of 3 at 2 s is the compare test's batch program)."""
     import jax.numpy as jnp
 
     from smibjax.grid.case import load_case
@@ -201,7 +210,7 @@ def test_montecarlo_on_a_case_rows_match_single_runs_and_not_the_chunk(tmp_path)
     common = ["montecarlo", "--case", "smib-gencls", "--n", "5", "--t-end", "2"]
     common += ["--fault-times", "0.2:0.3", "--clear-after", "0.1:1.2", "--seed", "4"]
     tables = []
-    for chunk in ("2", "5"):
+    for chunk in ("3", "5"):
         out = tmp_path / f"c{chunk}"
         assert main([*common, "--chunk", chunk, "--out", str(out)]) == 0
         lines = (out / "rows.csv").read_text().strip().splitlines()

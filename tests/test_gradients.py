@@ -25,6 +25,10 @@ import smibjax as sj
 from helpers import STABLE
 from smibjax._losses import LossWeights, scenario_loss
 
+# one worker runs the module: its tests share the compiled objectives and the
+# module fixture `limited_case` (under -n 2 the other worker built them again)
+pytestmark = pytest.mark.xdist_group("gradients")
+
 T_END = 4.0
 T_CLEAR = 0.7037  # clearing off the 10 ms sample grid
 TS = np.round(np.arange(0.0, T_END + 1e-9, 0.01), 10)  # simulate's sample grid
@@ -69,8 +73,13 @@ def weights(linear=None, squared=None):
 
 def perturb(p, name, v):
     """p with one leaf replaced by v, as an array like the leaf it replaces (a Python
-    float would be static to `filter_jit` and compile a new program per value)."""
-    v = jnp.asarray(v)
+    float would be static to `filter_jit` and compile a new program per value), of
+    its dtype and weak type: a weakly typed array in place of a gain's strongly typed
+    one is another signature, and compiled a program per perturbed gain (the nine
+    gains of the limited-plant test: nine compiles of the same loss)."""
+    old = leaf(p, name)
+    v = jnp.asarray(float(v)) if old.weak_type else jnp.asarray(v, dtype=old.dtype)
+    assert v.weak_type == old.weak_type and v.dtype == old.dtype
     if name in p:
         return {**p, name: v}
     return {**p, "gains": eqx.tree_at(lambda g: getattr(g, name), p["gains"], v)}

@@ -31,6 +31,7 @@ def test_soft_settling_time_of_exponential_decay():
         assert float(soft) == pytest.approx(exact, abs=0.06)
 
 
+@pytest.mark.xdist_group("reference_runs")  # conftest.py's session runs
 def test_surrogates_track_exact_metrics_on_trajectories(jax_runs, paper_run):
     w = LossWeights()
     for tr in (jax_runs["aftsc"], jax_runs["asc"]):

@@ -7,6 +7,11 @@ import pytest
 import reference
 from smibjax._metrics import metrics, settling_time
 
+# the tests that read the session fixtures `reference_runs` (SciPy at rtol 1e-9,
+# ~4 CPU-s), `jax_runs` and `paper_run` (conftest.py) run on one worker: under
+# -n 2 the other worker computed them again
+pytestmark = pytest.mark.xdist_group("reference_runs")
+
 
 def test_settling_time_of_exponential_decay():
     # |A exp(-(t - tf)/tau)| = band at t - tf = tau ln(A / band)

@@ -27,6 +27,10 @@ from smibjax.grid.operating import operating_point_traced
 from smibjax.grid.params import set_params
 from smibjax.grid.ybus import ybus
 
+# one worker runs the module: its tests share the module fixtures' linearizations
+# and their programs (under -n 2 a test on the other worker built them again)
+pytestmark = pytest.mark.xdist_group("modes")
+
 
 def operating_point(case):
     """The operating point (jitted: about twice as fast as the host entry here)."""

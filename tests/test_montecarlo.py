@@ -27,6 +27,10 @@ from smibjax._scenarios import ScenarioDistribution, sample_scenarios
 from smibjax.cli import main
 from smibjax.cli.runs import read_rows, run_montecarlo
 
+# one worker runs the module: its tests share the module fixture `reference_run`
+# and its programs (under -n 2 a test on the other worker built them again)
+pytestmark = pytest.mark.xdist_group("montecarlo")
+
 T_END = 6.0  # a shorter horizon than 10 s, still long enough to settle
 GAINS = {k: float(getattr(sj.Gains.paper("aftsc", **STABLE), k)) for k in sj.GAIN_NAMES}
 

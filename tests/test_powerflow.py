@@ -304,6 +304,11 @@ def test_load_admittance_draws_the_load_power_at_the_voltage():
 # ---- (b), (c) the power flow against the independent solver ----
 
 
+# one worker runs the module: its tests share the module fixture `solved` and the
+# power flow's programs (under -n 2 the other worker built them again)
+pytestmark = pytest.mark.xdist_group("powerflow")
+
+
 @pytest.fixture(scope="module")
 def solved():
     return {name: solve_power_flow(f()) for name, f in (("5", meshed5), ("9", wscc9))}

@@ -9,7 +9,13 @@ import reference
 import smibjax as sj
 from helpers import STABLE
 
+# the tests that read the session fixtures `reference_runs` (SciPy at rtol 1e-9,
+# ~4 CPU-s), `jax_runs` and `paper_run` (conftest.py) run on one worker: under
+# -n 2 the other worker computed them again
+REFERENCE = pytest.mark.xdist_group("reference_runs")
 
+
+@REFERENCE
 @pytest.mark.parametrize("controller", ["aftsc", "asc"])
 def test_trajectory_matches_independent_scipy_integration(
     controller, jax_runs, reference_runs
@@ -65,6 +71,7 @@ def test_other_scenarios_match_scipy(gains, fault, plant, oracle):
         assert float(jnp.max(jnp.abs(traj.u_r))) <= 1.0 + 1e-12
 
 
+@REFERENCE
 def test_paper_gains_lose_synchronism_with_finite_outputs(paper_run):
     tr = paper_run
     assert bool(tr.lost_sync) and not bool(tr.stable)
@@ -105,6 +112,7 @@ def test_vmap_over_gain_sets_mixes_stable_and_unstable():
     assert np.all(np.isfinite(np.asarray(batch.delta)))
 
 
+@REFERENCE
 def test_looser_atol_cuts_the_finite_time_tail_within_the_accuracy_target(
     jax_runs, reference_runs
 ):
@@ -119,6 +127,7 @@ def test_looser_atol_cuts_the_finite_time_tail_within_the_accuracy_target(
     assert bool(loose.stable)
 
 
+@REFERENCE
 def test_fixed_step_solver_agrees_with_adaptive(jax_runs):
     fixed = sj.simulate(sj.Gains.paper("aftsc", **STABLE), solver="fixed", dt=1e-3)
     err = np.max(np.abs(np.asarray(fixed.delta - jax_runs["aftsc"].delta)))
