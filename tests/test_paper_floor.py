@@ -8,15 +8,14 @@ as one in the simulator's own linearization."""
 from __future__ import annotations
 
 import importlib.util
-import json
 import math
 import sys
 
 import numpy as np
 import pytest
-from helpers import ROOT
 
 import smibjax as sj
+from helpers import ROOT
 
 _spec = importlib.util.spec_from_file_location(
     "paper_floor", ROOT / "studies" / "paper_heldout" / "floor.py"

@@ -203,7 +203,9 @@ def admissible_infimum(beta_abs_min: float = 0.1, n: int = 4000, seed: int = 0):
             "T1": math.exp(rng.uniform(math.log(0.002), 0.0)),
             "T2": math.exp(rng.uniform(math.log(1e-3), math.log(10.0))),
             "alpha": rng.uniform(0.6, 1.0),
-            "k2": rng.choice([0.0, math.exp(rng.uniform(math.log(1e-3), math.log(10)))]),
+            "k2": rng.choice(
+                [0.0, math.exp(rng.uniform(math.log(1e-3), math.log(10)))]
+            ),
         }
         try:
             r = rest_point(g)
