@@ -660,7 +660,9 @@ def parse_args(argv=None):
         if getattr(args, k) is None:
             setattr(args, k, v)
     if args.cases is None:
-        args.cases = list(CASES)[:4] if args.full else list(CASES)[:1] + list(CASES)[2:3]
+        args.cases = (
+            list(CASES)[:4] if args.full else list(CASES)[:1] + list(CASES)[2:3]
+        )
     return args
 
 
