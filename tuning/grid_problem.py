@@ -99,16 +99,17 @@ class GridSpace:
 def load_case_from(cfg: dict):
     """The case of the `[case]` table (one-line `ParameterError` if it cannot be
     loaded)."""
-    from smibjax.grid.case import CaseError, load_case
+    from smibjax.cli.grid import load_case_reporting
+    from smibjax.grid.case import CaseError
     from smibjax.grid.params import ParamError, set_params
 
     c = cfg["case"]
     try:
         case = (
-            load_case(c["name"])
+            load_case_reporting(c["name"])
             if c["name"]
-            else load_case(
-                c["raw"], c["dyr"], skip_unsupported=c.get("skip_unsupported", False)
+            else load_case_reporting(
+                c["raw"], c["dyr"], c.get("skip_unsupported", False)
             )
         )
     except (CaseError, OSError, ValueError) as e:

@@ -584,7 +584,7 @@ def main(args) -> int:
     from smibjax._commandline import CLIError
     from smibjax._files import check_out_folder, write_json
 
-    from .grid_problem import build_grid
+    from .grid_problem import build_grid, make_step
     from .loop import CHECKPOINT
     from .optimize import output
     from .resume import SessionClock, start_mode
@@ -593,7 +593,8 @@ def main(args) -> int:
         cfg = _load_cfg(args)
         if args.resume and not args.out:
             raise ParameterError("--resume needs --out DIR (the run to continue)")
-        build_grid(cfg)  # every check before anything is written
+        # every check before anything is written; the problem is kept for run_grid
+        _compiled(cfg, build_grid, make_step)
         out = output(args)
         check_out_folder(out)  # writable, before any work
         resume = start_mode(out, cfg, args.resume, CHECKPOINT)

@@ -28,24 +28,26 @@ __all__ = ["add_case_options", "run_simulate", "run_montecarlo", "run_cct", "loa
 GRID_CHUNK = 128
 
 
-def load_case_warning(args):
-    """`load_case` for the command line: --case, --dyr, --skip-unsupported; the
-    reader's warnings (a skipped model, a remote regulated bus) printed as one
-    "smibjax: warning: ..." line each on stderr."""
+def load_case_reporting(name_or_raw, dyr=None, skip_unsupported=False):
+    """`load_case` with the reader's warnings (a skipped dyr model, a remote
+    regulated bus) printed as one "smibjax: warning: ..." line each on stderr."""
     import warnings
 
     from ..grid.case import load_case
 
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        case = load_case(
-            args.case,
-            args.dyr,
-            skip_unsupported=getattr(args, "skip_unsupported", False),
-        )
+        case = load_case(name_or_raw, dyr, skip_unsupported=skip_unsupported)
     for w in caught:
         print(f"smibjax: warning: {w.message}", file=sys.stderr)
     return case
+
+
+def load_case_warning(args):
+    """`load_case_reporting` of --case, --dyr, --skip-unsupported."""
+    return load_case_reporting(
+        args.case, args.dyr, getattr(args, "skip_unsupported", False)
+    )
 
 
 def add_case_options(p, events: bool = True) -> None:

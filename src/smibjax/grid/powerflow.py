@@ -29,7 +29,7 @@ machine outputs, which a dynamic simulation starts from) plus a share of the
 difference between the bus's solved Q and their sum, in proportion to the Q ranges,
 q_i = q_i,case + (Q - sum q_case) (qmax_i - qmin_i) / sum (qmax - qmin), equally if a
 range is not finite or the ranges sum to zero (with every q_case zero: MATPOWER's
-rule for symmetric limits). One generator takes its bus's Q.
+rule for symmetric limits); a bus's only generator takes its Q.
 """
 
 from __future__ import annotations
@@ -183,26 +183,17 @@ def _generators(system: System, s: _Schedule, inj):
     q_bus = jnp.imag(inj) + s.q_load
     p_shared, _ = _share(n, gbus, on, p_bus, jnp.asarray(g.mbase))
     p_gen = jnp.where(s.slack[gbus], p_shared, on * jnp.asarray(g.p))
-    # Q at PV and slack buses. One generator: the bus's Q (written as the range rule
-    # below, whose arithmetic the single-machine cases were pinned with). Several:
-    # each keeps the case's own q (a solved case's machine outputs) plus a share of
-    # the difference between the bus's Q and their sum, in proportion to the Q ranges
-    # (equally if a range is not finite or they sum to zero). With every q zero (an
+    # Q at PV and slack buses: each generator keeps the case's own q (a solved case's
+    # machine outputs) plus a share of the difference between the bus's Q and their
+    # sum, in proportion to the Q ranges (equally if a range is not finite or they
+    # sum to zero); a bus's only generator thus takes its Q. With every q zero (an
     # unsolved case) that is MATPOWER's rule for symmetric limits.
-    qmin = jnp.asarray(g.qmin)
-    qmin_ok = jnp.where(jnp.isfinite(qmin), qmin, 0.0)
-    q_min_sum = _bus_sum(n, gbus, on * qmin_ok)
-    rng = jnp.asarray(g.qmax) - qmin
-    part, ok = _share(n, gbus, on, q_bus - q_min_sum, rng)
-    q_equal, _ = _share(n, gbus, on, q_bus, jnp.zeros_like(on))
-    q_one = jnp.where(ok[gbus], on * qmin_ok + part, q_equal)
+    rng = jnp.asarray(g.qmax) - jnp.asarray(g.qmin)
     q_case = on * jnp.asarray(g.q)
     rest = q_bus - _bus_sum(n, gbus, q_case)
     rest_rng, ok_rest = _share(n, gbus, on, rest, rng)
     rest_eq, _ = _share(n, gbus, on, rest, jnp.zeros_like(on))
-    q_several = q_case + jnp.where(ok_rest[gbus], rest_rng, rest_eq)
-    several = _bus_sum(n, gbus, on) > 1
-    q_shared = jnp.where(several[gbus], q_several, q_one)
+    q_shared = q_case + jnp.where(ok_rest[gbus], rest_rng, rest_eq)
     q_gen = jnp.where(s.fixed_v[gbus], q_shared, on * jnp.asarray(g.q))
     p_slack = jnp.sum(jnp.where(s.slack, p_bus, 0.0))
     return p_gen, q_gen, p_slack
