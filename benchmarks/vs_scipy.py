@@ -6,7 +6,10 @@ tests/reference.py (its right-hand side and network stages), integrated the way 
 would write it: one solve_ivp per network stage, sampled on the same 10 ms grid, one
 scenario after another. The smibjax side is the throughput benchmark's batch call
 (jit(vmap(simulate + metrics)) over --devices host devices) at batch --batch. Both at
-rtol 1e-6, atol 1e-8 (simulate's defaults; --rtol/--atol set both). The agreement
+rtol 1e-6, atol 1e-8 (simulate's defaults; --rtol/--atol set both; --smibjax-rtol/
+--smibjax-atol set smibjax's alone, for a comparison at equal accuracy: the agreement
+columns then say whether smibjax at its looser tolerance is still at least as close
+to the reference as SciPy at its own). The agreement
 is measured on the scenarios both ran: max |delta| difference between SciPy and
 smibjax, and each against a tight-tolerance reference (smibjax at rtol 1e-10,
 atol 1e-12, or --reference scipy: DOP853 at that tolerance). Targets: smibjax at
@@ -15,7 +18,7 @@ faster SciPy method). Prints a table and writes benchmarks/results/vs_scipy.json
 vs_scipy.png (vs_scipy_TAG.* with --tag).
 
     python benchmarks/vs_scipy.py [--n-scipy 8] [--batch 1024] [--devices 2]
-        [--rtol 1e-6] [--atol 1e-8] [--tag NAME]
+        [--rtol 1e-6] [--atol 1e-8] [--smibjax-rtol R --smibjax-atol A] [--tag NAME]
 """
 
 from __future__ import annotations
@@ -61,7 +64,6 @@ from _common import (
     result_name,
     row,
     scenarios,
-    solver_of,
     status,
     take,
     timed,
@@ -155,8 +157,32 @@ def parse_args(argv=None):
     ap.add_argument("--t-end", type=float, default=10.0, help="scenario length (s)")
     ap.add_argument("--seed", type=int, default=0)
     add_tolerance_args(ap)
+    ap.add_argument(
+        "--smibjax-rtol",
+        type=float,
+        default=None,
+        help="smibjax's rtol alone (default: --rtol, SciPy's)",
+    )
+    ap.add_argument(
+        "--smibjax-atol",
+        type=float,
+        default=None,
+        help="smibjax's atol alone (default: --atol, SciPy's)",
+    )
     ap.add_argument("--out", default=str(DEFAULT_OUT))
-    return ap.parse_args(argv)
+    args = ap.parse_args(argv)
+    for name in ("smibjax_rtol", "smibjax_atol"):
+        v = getattr(args, name)
+        if v is not None and not (math.isfinite(v) and v > 0):
+            ap.error(f"--{name.replace('_', '-')} {v:g}: must be a positive number")
+    return args
+
+
+def smibjax_solver(args) -> sj.SolverOptions:
+    """smibjax's solver options: --smibjax-rtol/--smibjax-atol, else SciPy's."""
+    rtol = args.rtol if args.smibjax_rtol is None else args.smibjax_rtol
+    atol = args.atol if args.smibjax_atol is None else args.smibjax_atol
+    return sj.SolverOptions(rtol=rtol, atol=atol)
 
 
 def main(argv=None) -> None:
@@ -169,7 +195,7 @@ def main(argv=None) -> None:
     rows, agreement = {}, {}
     for ctrl in args.controllers:
         g = gains(ctrl)
-        fn = batched_metrics(args.t_end, solver_of(args))
+        fn = batched_metrics(args.t_end, smibjax_solver(args))
         gd = {n: float(getattr(g, n)) for n in sj.GAIN_NAMES}
 
         # smibjax: one batch call over the devices (best of --repeat after warm-up)
@@ -195,7 +221,7 @@ def main(argv=None) -> None:
 
         # the shared scenarios: smibjax per scenario, and the tight reference
         n = args.n_scipy
-        d_jax, lost = deltas(g, pool, n, args.t_end, solver_of(args))
+        d_jax, lost = deltas(g, pool, n, args.t_end, smibjax_solver(args))
         if args.reference == "smibjax":
             d_ref = deltas(g, pool, n, args.t_end, REFERENCE)[0]
         else:
@@ -306,6 +332,10 @@ def main(argv=None) -> None:
         "the first n_scipy shared",
         "gains": "Gains.paper(controller, beta1=-1, beta2=-1)",
         "tolerance": {"rtol": args.rtol, "atol": args.atol},
+        "smibjax_tolerance": {
+            "rtol": smibjax_solver(args).rtol,
+            "atol": smibjax_solver(args).atol,
+        },
         "n_scipy": args.n_scipy,
         "scipy_methods": args.methods,
         "scipy_model": "tests/reference.py rhs and stages, one solve_ivp per stage, "
