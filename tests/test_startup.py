@@ -153,54 +153,56 @@ def _refused(log: str) -> list[str]:
     ]
 
 
-@pytest.mark.parametrize(
-    "argv",
-    [
-        ["smibjax", "simulate", "--t-end", "3", "--out", "run.npz", "--force"],
-        [
-            "tuning.optimize",
-            "--config",
-            "tiny.toml",
-            "--out",
-            "tune",
-        ],
-    ],
-    ids=["simulate", "tuner"],
-)
-def test_a_second_identical_run_hits_the_persistent_cache(tmp_path, argv):
+def test_a_second_identical_run_hits_the_persistent_cache(tmp_path):
     """Issue 32: the tuner's programs carried host callbacks (equinox loaded before
-    the process was configured) and were never cached. A second identical run now
-    writes nothing new to the cache and loads its compiled programs from it."""
-    (tmp_path / "tiny.toml").write_text(
-        "steps = 1\nbatch = 2\n[validation]\nn = 2\nevery = 1\nt_end = 3.0\n"
-        "[train]\nt_end = 3.0\n"
-    )
+    the process was configured) and were never cached. A second identical `simulate`
+    writes nothing new to the cache and loads its compiled programs from it. (The
+    tuner's pair of processes is tests/test_tuning.py's SIGKILL test: its resumed
+    process loads the programs of the uninterrupted run from the suite's cache.)"""
+    argv = ["smibjax", "simulate", "--t-end", "3", "--out", "run.npz", "--force"]
     cache = tmp_path / "cache"
     first = _run_logged(argv, cache, tmp_path)
     assert _refused(first) == []
     # simulate's programs are called from their stored (exported) form
-    program = "jit_call_exported" if argv[0] == "smibjax" else "jit__simulate"
+    program = "jit_call_exported"
     assert any(e.startswith(f"{program}-") for e in os.listdir(cache))
-    if argv[0] == "tuning.optimize":
-        import shutil
-
-        shutil.rmtree(tmp_path / "tune")
     second = _run_logged(argv, cache, tmp_path)
     assert _refused(second) == []
     # the programs that take seconds to compile come from the cache (on a loaded
     # machine a few tiny ones may newly pass the 0.5 s threshold and be written)
-    programs = [program]
-    if argv[0] == "tuning.optimize":
-        programs += ["jit_run", "jit_reduce"]
     log = second.lower()
-    for p in programs:
-        assert f"compilation cache hit for '{p}'" in log, p
-        assert f"compilation cache miss for '{p}'" not in log, p
+    assert f"compilation cache hit for '{program}'" in log
+    assert f"compilation cache miss for '{program}'" not in log
     assert "compiling " in first and "(cache: cold)" in first
-    if argv[0] == "smibjax":  # nothing traced, nothing to announce
-        assert "compiling " not in second
-    else:
-        assert "compiling " in second and "(cache: warm)" in second
+    assert "compiling " not in second  # nothing traced, nothing to announce
+
+
+def test_the_cache_state_names_the_programs_it_looks_for(tmp_path):
+    """`cache_state` (the "(cache: warm|cold|off)" of the commands' compiling line,
+    the tuner's with its programs `jit_run` and `jit_reduce`): cold in an empty or
+    missing folder or one holding only other programs, warm once it holds an entry of
+    one of them, off without a folder."""
+    import jax
+
+    from smibjax._process import cache_state
+
+    names = ("jit_run", "jit_reduce")
+    before = jax.config.jax_compilation_cache_dir
+    try:
+        jax.config.update("jax_compilation_cache_dir", str(tmp_path / "missing"))
+        assert cache_state(*names) == "cold"
+        jax.config.update("jax_compilation_cache_dir", str(tmp_path))
+        assert cache_state(*names) == "cold"
+        (tmp_path / "jit__simulate-0123").write_bytes(b"x")
+        (tmp_path / "jit_runner-0123").write_bytes(b"x")
+        assert cache_state(*names) == "cold"
+        (tmp_path / "jit_reduce-4567").write_bytes(b"x")
+        assert cache_state(*names) == "warm"
+        assert cache_state("jit__simulate") == "warm"
+        jax.config.update("jax_compilation_cache_dir", None)
+        assert cache_state(*names) == "off"
+    finally:
+        jax.config.update("jax_compilation_cache_dir", before)
 
 
 @pytest.mark.parametrize(
