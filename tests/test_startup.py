@@ -1,8 +1,8 @@
 """Start-up of the entry points (issue 32): `--help` answers without JAX, every
 entry point configures the process before equinox or JAX load, and a second
-identical `simulate` or tuning run finds its programs in the persistent compilation
-cache (nothing new written to it, no "Not writing persistent cache entry" but for
-the programs too quick to keep)."""
+identical `simulate` finds its programs in the persistent compilation cache (nothing
+new written to it, no "Not writing persistent cache entry" but for the programs too
+quick to keep; the tuner's is tests/test_tuning.py's SIGKILL test)."""
 
 import ast
 import os
@@ -124,25 +124,6 @@ def test_every_benchmark_configures_before_jax_loads(script):
     assert conf is not None and conf < first, (script, conf, first)
 
 
-def _run_logged(argv, cache: Path, cwd: Path) -> str:
-    env = {
-        **os.environ,
-        "PYTHONPATH": f"{ROOT / 'src'}:{ROOT}",
-        "SMIBJAX_CACHE_DIR": str(cache),
-        "JAX_LOGGING_LEVEL": "DEBUG",
-    }
-    env.pop("EQX_ON_ERROR", None)
-    r = subprocess.run(
-        [sys.executable, "-m", *argv],
-        capture_output=True,
-        text=True,
-        cwd=cwd,
-        env=env,
-    )
-    assert r.returncode == 0, r.stderr[-3000:]
-    return r.stderr
-
-
 def _refused(log: str) -> list[str]:
     """The log lines of programs the cache refused or missed for another reason
     than a compile too quick to keep."""
@@ -151,30 +132,6 @@ def _refused(log: str) -> list[str]:
         for line in log.splitlines()
         if "Not writing persistent cache entry" in line and "took <" not in line
     ]
-
-
-def test_a_second_identical_run_hits_the_persistent_cache(tmp_path):
-    """Issue 32: the tuner's programs carried host callbacks (equinox loaded before
-    the process was configured) and were never cached. A second identical `simulate`
-    writes nothing new to the cache and loads its compiled programs from it. (The
-    tuner's pair of processes is tests/test_tuning.py's SIGKILL test: its resumed
-    process loads the programs of the uninterrupted run from the suite's cache.)"""
-    argv = ["smibjax", "simulate", "--t-end", "3", "--out", "run.npz", "--force"]
-    cache = tmp_path / "cache"
-    first = _run_logged(argv, cache, tmp_path)
-    assert _refused(first) == []
-    # simulate's programs are called from their stored (exported) form
-    program = "jit_call_exported"
-    assert any(e.startswith(f"{program}-") for e in os.listdir(cache))
-    second = _run_logged(argv, cache, tmp_path)
-    assert _refused(second) == []
-    # the programs that take seconds to compile come from the cache (on a loaded
-    # machine a few tiny ones may newly pass the 0.5 s threshold and be written)
-    log = second.lower()
-    assert f"compilation cache hit for '{program}'" in log
-    assert f"compilation cache miss for '{program}'" not in log
-    assert "compiling " in first and "(cache: cold)" in first
-    assert "compiling " not in second  # nothing traced, nothing to announce
 
 
 def test_the_cache_state_names_the_programs_it_looks_for(tmp_path):
@@ -250,15 +207,22 @@ sys.exit(code)
 """
 
 
-def _simulate_child(args, cache: Path, cwd: Path, **env_extra) -> tuple[str, str, str]:
+def _simulate_child(
+    args, cache: Path, cwd: Path, log: list | None = None, **env_extra
+) -> tuple[str, str, str]:
     """(path taken, heavy modules loaded, summary) of one `simulate` in a fresh
-    process with the compilation cache `cache`."""
+    process with the compilation cache `cache`. With `log` (a list), the process
+    configures itself (no EQX_ON_ERROR inherited) and logs JAX's compiles and cache
+    reads; its stderr is appended to `log`."""
     env = {
         **os.environ,
         "PYTHONPATH": f"{ROOT / 'src'}:{ROOT}",
         "SMIBJAX_CACHE_DIR": str(cache),
         **env_extra,
     }
+    if log is not None:
+        env.pop("EQX_ON_ERROR", None)
+        env["JAX_LOGGING_LEVEL"] = "DEBUG"
     r = subprocess.run(
         [sys.executable, "-c", _PROBE, "simulate", "--force", *args],
         capture_output=True,
@@ -267,6 +231,8 @@ def _simulate_child(args, cache: Path, cwd: Path, **env_extra) -> tuple[str, str
         env=env,
     )
     assert r.returncode == 0, r.stderr[-3000:]
+    if log is not None:
+        log.append(r.stderr)
     line = next(x for x in r.stderr.splitlines() if x.startswith("PATH "))
     _, path, _, loaded = (line + " ").split(" ", 3)
     summary = "\n".join(x for x in r.stdout.splitlines() if not x.startswith("wrote"))
@@ -290,15 +256,28 @@ def test_a_second_simulate_calls_the_stored_program_bit_for_bit(tmp_path):
     second calls them (no trace; diffrax, SciPy and matplotlib not loaded), and both
     give the traced path's npz and summary bit for bit. New values of the same
     structure (`--set H=6`) call the stored programs too (values are arguments, not
-    constants); a changed option (`--rtol`) misses, exports anew and differs."""
+    constants); a changed option (`--rtol`) misses, exports anew and differs.
+
+    Issue 32's cache check for `simulate` (a second identical run writes nothing new
+    to the cache and loads its compiled programs from it) on the first and second
+    runs here, from a cold cache (they were a separate pair of processes)."""
     cache = tmp_path / "cache"
     out = ["--t-end", "3", "--out"]
+    logs = []
+    first = _simulate_child([*out, "b.npz"], cache, tmp_path, log=logs)
+    assert first[0] == "exported"
     traced = _simulate_child([*out, "a.npz"], cache, tmp_path, SMIBJAX_EXPORTED="0")
     assert traced[0] == "traced"
-    first = _simulate_child([*out, "b.npz"], cache, tmp_path)
-    assert first[0] == "exported"
-    second = _simulate_child([*out, "c.npz"], cache, tmp_path)
+    second = _simulate_child([*out, "c.npz"], cache, tmp_path, log=logs)
     assert second[:2] == ("stored", "")  # nothing heavy loaded
+    # issue 32: nothing refused by the cache; the second run's program from it
+    assert _refused(logs[0]) == [] and _refused(logs[1]) == []
+    assert any(e.startswith("jit_call_exported-") for e in os.listdir(cache))
+    log = logs[1].lower()
+    assert "compilation cache hit for 'jit_call_exported'" in log
+    assert "compilation cache miss for 'jit_call_exported'" not in log
+    assert "compiling " in logs[0] and "(cache: cold)" in logs[0]
+    assert "compiling " not in logs[1]  # nothing traced, nothing to announce
     assert traced[2] == first[2] == second[2]
     _same_bits(tmp_path / "a.npz", tmp_path / "b.npz")
     _same_bits(tmp_path / "a.npz", tmp_path / "c.npz")
