@@ -88,7 +88,8 @@ LANES = (
 )
 
 # Scripts that run with the suite's one host device (conftest's XLA_FLAGS) instead of
-# their own one per core: JAX's persistent-cache key holds the host's device topology,
+# their own one per core: JAX's persistent-cache key holds the XLA flags (one device
+# per core comes with --xla_cpu_multi_thread_eigen=false) and the devices' topology,
 # so a program compiled in a process with 2 host devices is never found by one with 1
 # (measured 2026-12-02: benchmarks/tuning_grid.py's training step, the same module
 # text, missed test_tuning_grid's entry with 2 devices and hit it with 1). The grid
