@@ -1,8 +1,8 @@
 """Start-up of the entry points (issue 32): `--help` answers without JAX, every
 entry point configures the process before equinox or JAX load, and a second
-identical `simulate` or tuning run finds its programs in the persistent compilation
-cache (nothing new written to it, no "Not writing persistent cache entry" but for
-the programs too quick to keep)."""
+identical `simulate` finds its programs in the persistent compilation cache (nothing
+new written to it, no "Not writing persistent cache entry" but for the programs too
+quick to keep; the tuner's is tests/test_tuning.py's SIGKILL test)."""
 
 import ast
 import os
@@ -124,25 +124,6 @@ def test_every_benchmark_configures_before_jax_loads(script):
     assert conf is not None and conf < first, (script, conf, first)
 
 
-def _run_logged(argv, cache: Path, cwd: Path) -> str:
-    env = {
-        **os.environ,
-        "PYTHONPATH": f"{ROOT / 'src'}:{ROOT}",
-        "SMIBJAX_CACHE_DIR": str(cache),
-        "JAX_LOGGING_LEVEL": "DEBUG",
-    }
-    env.pop("EQX_ON_ERROR", None)
-    r = subprocess.run(
-        [sys.executable, "-m", *argv],
-        capture_output=True,
-        text=True,
-        cwd=cwd,
-        env=env,
-    )
-    assert r.returncode == 0, r.stderr[-3000:]
-    return r.stderr
-
-
 def _refused(log: str) -> list[str]:
     """The log lines of programs the cache refused or missed for another reason
     than a compile too quick to keep."""
@@ -153,54 +134,32 @@ def _refused(log: str) -> list[str]:
     ]
 
 
-@pytest.mark.parametrize(
-    "argv",
-    [
-        ["smibjax", "simulate", "--t-end", "3", "--out", "run.npz", "--force"],
-        [
-            "tuning.optimize",
-            "--config",
-            "tiny.toml",
-            "--out",
-            "tune",
-        ],
-    ],
-    ids=["simulate", "tuner"],
-)
-def test_a_second_identical_run_hits_the_persistent_cache(tmp_path, argv):
-    """Issue 32: the tuner's programs carried host callbacks (equinox loaded before
-    the process was configured) and were never cached. A second identical run now
-    writes nothing new to the cache and loads its compiled programs from it."""
-    (tmp_path / "tiny.toml").write_text(
-        "steps = 1\nbatch = 2\n[validation]\nn = 2\nevery = 1\nt_end = 3.0\n"
-        "[train]\nt_end = 3.0\n"
-    )
-    cache = tmp_path / "cache"
-    first = _run_logged(argv, cache, tmp_path)
-    assert _refused(first) == []
-    # simulate's programs are called from their stored (exported) form
-    program = "jit_call_exported" if argv[0] == "smibjax" else "jit__simulate"
-    assert any(e.startswith(f"{program}-") for e in os.listdir(cache))
-    if argv[0] == "tuning.optimize":
-        import shutil
+def test_the_cache_state_names_the_programs_it_looks_for(tmp_path):
+    """`cache_state` (the "(cache: warm|cold|off)" of the commands' compiling line,
+    the tuner's with its programs `jit_run` and `jit_reduce`): cold in an empty or
+    missing folder or one holding only other programs, warm once it holds an entry of
+    one of them, off without a folder."""
+    import jax
 
-        shutil.rmtree(tmp_path / "tune")
-    second = _run_logged(argv, cache, tmp_path)
-    assert _refused(second) == []
-    # the programs that take seconds to compile come from the cache (on a loaded
-    # machine a few tiny ones may newly pass the 0.5 s threshold and be written)
-    programs = [program]
-    if argv[0] == "tuning.optimize":
-        programs += ["jit_run", "jit_reduce"]
-    log = second.lower()
-    for p in programs:
-        assert f"compilation cache hit for '{p}'" in log, p
-        assert f"compilation cache miss for '{p}'" not in log, p
-    assert "compiling " in first and "(cache: cold)" in first
-    if argv[0] == "smibjax":  # nothing traced, nothing to announce
-        assert "compiling " not in second
-    else:
-        assert "compiling " in second and "(cache: warm)" in second
+    from smibjax._process import cache_state
+
+    names = ("jit_run", "jit_reduce")
+    before = jax.config.jax_compilation_cache_dir
+    try:
+        jax.config.update("jax_compilation_cache_dir", str(tmp_path / "missing"))
+        assert cache_state(*names) == "cold"
+        jax.config.update("jax_compilation_cache_dir", str(tmp_path))
+        assert cache_state(*names) == "cold"
+        (tmp_path / "jit__simulate-0123").write_bytes(b"x")
+        (tmp_path / "jit_runner-0123").write_bytes(b"x")
+        assert cache_state(*names) == "cold"
+        (tmp_path / "jit_reduce-4567").write_bytes(b"x")
+        assert cache_state(*names) == "warm"
+        assert cache_state("jit__simulate") == "warm"
+        jax.config.update("jax_compilation_cache_dir", None)
+        assert cache_state(*names) == "off"
+    finally:
+        jax.config.update("jax_compilation_cache_dir", before)
 
 
 @pytest.mark.parametrize(
@@ -248,15 +207,22 @@ sys.exit(code)
 """
 
 
-def _simulate_child(args, cache: Path, cwd: Path, **env_extra) -> tuple[str, str, str]:
+def _simulate_child(
+    args, cache: Path, cwd: Path, log: list | None = None, **env_extra
+) -> tuple[str, str, str]:
     """(path taken, heavy modules loaded, summary) of one `simulate` in a fresh
-    process with the compilation cache `cache`."""
+    process with the compilation cache `cache`. With `log` (a list), the process
+    configures itself (no EQX_ON_ERROR inherited) and logs JAX's compiles and cache
+    reads; its stderr is appended to `log`."""
     env = {
         **os.environ,
         "PYTHONPATH": f"{ROOT / 'src'}:{ROOT}",
         "SMIBJAX_CACHE_DIR": str(cache),
         **env_extra,
     }
+    if log is not None:
+        env.pop("EQX_ON_ERROR", None)
+        env["JAX_LOGGING_LEVEL"] = "DEBUG"
     r = subprocess.run(
         [sys.executable, "-c", _PROBE, "simulate", "--force", *args],
         capture_output=True,
@@ -265,6 +231,8 @@ def _simulate_child(args, cache: Path, cwd: Path, **env_extra) -> tuple[str, str
         env=env,
     )
     assert r.returncode == 0, r.stderr[-3000:]
+    if log is not None:
+        log.append(r.stderr)
     line = next(x for x in r.stderr.splitlines() if x.startswith("PATH "))
     _, path, _, loaded = (line + " ").split(" ", 3)
     summary = "\n".join(x for x in r.stdout.splitlines() if not x.startswith("wrote"))
@@ -288,15 +256,28 @@ def test_a_second_simulate_calls_the_stored_program_bit_for_bit(tmp_path):
     second calls them (no trace; diffrax, SciPy and matplotlib not loaded), and both
     give the traced path's npz and summary bit for bit. New values of the same
     structure (`--set H=6`) call the stored programs too (values are arguments, not
-    constants); a changed option (`--rtol`) misses, exports anew and differs."""
+    constants); a changed option (`--rtol`) misses, exports anew and differs.
+
+    Issue 32's cache check for `simulate` (a second identical run writes nothing new
+    to the cache and loads its compiled programs from it) on the first and second
+    runs here, from a cold cache (they were a separate pair of processes)."""
     cache = tmp_path / "cache"
     out = ["--t-end", "3", "--out"]
+    logs = []
+    first = _simulate_child([*out, "b.npz"], cache, tmp_path, log=logs)
+    assert first[0] == "exported"
     traced = _simulate_child([*out, "a.npz"], cache, tmp_path, SMIBJAX_EXPORTED="0")
     assert traced[0] == "traced"
-    first = _simulate_child([*out, "b.npz"], cache, tmp_path)
-    assert first[0] == "exported"
-    second = _simulate_child([*out, "c.npz"], cache, tmp_path)
+    second = _simulate_child([*out, "c.npz"], cache, tmp_path, log=logs)
     assert second[:2] == ("stored", "")  # nothing heavy loaded
+    # issue 32: nothing refused by the cache; the second run's program from it
+    assert _refused(logs[0]) == [] and _refused(logs[1]) == []
+    assert any(e.startswith("jit_call_exported-") for e in os.listdir(cache))
+    log = logs[1].lower()
+    assert "compilation cache hit for 'jit_call_exported'" in log
+    assert "compilation cache miss for 'jit_call_exported'" not in log
+    assert "compiling " in logs[0] and "(cache: cold)" in logs[0]
+    assert "compiling " not in logs[1]  # nothing traced, nothing to announce
     assert traced[2] == first[2] == second[2]
     _same_bits(tmp_path / "a.npz", tmp_path / "b.npz")
     _same_bits(tmp_path / "a.npz", tmp_path / "c.npz")

@@ -410,10 +410,29 @@ def test_avr_pss_tunes_its_own_parameters(tmp_path):
     assert "final estimates" not in report and "boundary layer" not in report
 
 
+def _refused(log: str) -> list[str]:
+    """The JAX debug log's lines of programs the persistent cache refused for another
+    reason than a compile too quick to keep (issue 32: host callbacks)."""
+    return [
+        line
+        for line in log.splitlines()
+        if "Not writing persistent cache entry" in line and "took <" not in line
+    ]
+
+
 @TUNER
 def test_kill_9_then_resume_matches_an_uninterrupted_run(tmp_path, uninterrupted):
     """A real SIGKILL mid-run, then `--resume`: same gains and history as the run that
-    was never interrupted; the files written before the kill are kept."""
+    was never interrupted; the files written before the kill are kept.
+
+    The two command-line processes also hold issue 32's check (they were a separate
+    pair of tuner processes in tests/test_startup.py, one of them from a cold cache:
+    30-40 CPU-s): the tuner's programs carried host callbacks (equinox loaded before
+    the process was configured, EQX_ON_ERROR not inherited) and were never cached.
+    The uninterrupted run of this process stored the tiny config's programs in the
+    suite's cache; the processes refuse none, and the resumed one loads its training
+    step, reduction and validation from the cache (a process whose programs differ,
+    e.g. with host callbacks, misses them) and says the cache is warm."""
     import signal
     import subprocess
     import time
@@ -422,25 +441,35 @@ def test_kill_9_then_resume_matches_an_uninterrupted_run(tmp_path, uninterrupted
 
     cfgfile, a = uninterrupted
     b = tmp_path / "b"
-    proc = subprocess.Popen(
-        tuner_cli(cfgfile, "--out", str(b)), cwd=ROOT, env=cli_env()
-    )
-    deadline = time.time() + 300
-    while time.time() < deadline:
-        hist = b / "history.csv"
-        if hist.is_file() and len(hist.read_text().splitlines()) >= 3:  # >= 2 steps
-            break
-        time.sleep(0.05)
-    proc.send_signal(signal.SIGKILL)
-    proc.wait()
+    env = {**cli_env(), "JAX_LOGGING_LEVEL": "DEBUG"}
+    env.pop("EQX_ON_ERROR", None)  # each process configures its own
+    with open(tmp_path / "killed.log", "w") as log:
+        proc = subprocess.Popen(
+            tuner_cli(cfgfile, "--out", str(b)),
+            cwd=ROOT,
+            env=env,
+            stdout=subprocess.DEVNULL,
+            stderr=log,
+        )
+        deadline = time.time() + 300
+        while time.time() < deadline:
+            hist = b / "history.csv"
+            if hist.is_file() and len(hist.read_text().splitlines()) >= 3:  # >= 2
+                break
+            time.sleep(0.05)
+        proc.send_signal(signal.SIGKILL)
+        proc.wait()
     assert not (b / "gains.json").exists()  # it really was cut short
     before_kill = (b / "history.csv").read_bytes().splitlines()
-    subprocess.run(
-        tuner_cli(cfgfile, "--out", str(b), "--resume"),
-        check=True,
+    # not --quiet: the resumed run says whether the cache is warm
+    resumed = subprocess.run(
+        [x for x in tuner_cli(cfgfile, "--out", str(b), "--resume") if x != "--quiet"],
+        capture_output=True,
+        text=True,
         cwd=ROOT,
-        env=cli_env(),
+        env=env,
     )
+    assert resumed.returncode == 0, resumed.stderr[-3000:]
     for name in ("gains.json", "gains_last.json"):
         assert json.loads((b / name).read_text()) == json.loads((a / name).read_text())
     a_hist = (a / "history.csv").read_text().splitlines()
@@ -449,6 +478,16 @@ def test_kill_9_then_resume_matches_an_uninterrupted_run(tmp_path, uninterrupted
     # the rows written before the kill are kept byte for byte (seconds included)
     assert (b / "history.csv").read_bytes().splitlines()[: len(before_kill)] == (
         before_kill
+    )
+    # issue 32: nothing refused by the cache, the heavy programs loaded from it
+    assert _refused((tmp_path / "killed.log").read_text()) == []
+    assert _refused(resumed.stderr) == []
+    log = resumed.stderr.lower()
+    for p in ("jit_run", "jit_reduce", "jit__simulate"):
+        assert f"compilation cache hit for '{p}'" in log, p
+        assert f"compilation cache miss for '{p}'" not in log, p
+    assert "compiling the training step and the validation (cache: warm)" in (
+        resumed.stderr
     )
 
 
