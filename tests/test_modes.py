@@ -475,6 +475,13 @@ def test_cli_modes_bad_input_one_line_exit_2_nothing_written(
     assert not out.exists() and not (tmp_path / "p.png").exists()
 
 
+@jax.jit  # one program for the three gain sets, not ~100 operations run eagerly each
+def _loop_jacobian(y, loop):
+    from smibjax._closed_loop import closed_loop_vector_field
+
+    return jax.jacfwd(lambda y: closed_loop_vector_field(0.0, y, loop))(y)
+
+
 @pytest.mark.parametrize("beta", [(-1.0, -1.0), (-2.0, -1.0), (50.0, 50.0)])
 def test_the_paper_cases_linearization_has_the_manifold_roots(beta):
     """Issue 29 item 5: the Jacobian of the SMIB's closed loop (ASC, oracle
@@ -482,7 +489,7 @@ def test_the_paper_cases_linearization_has_the_manifold_roots(beta):
     manifold's error dynamics M s^2 + (D - kappa) s - kappa = 0, kappa = 1/beta1 +
     1/beta2 (docs/model.md section 2): the saddle +0.24 1/s for beta = 50."""
     import smibjax as sj
-    from smibjax._closed_loop import ClosedLoop, closed_loop_vector_field, initial_state
+    from smibjax._closed_loop import ClosedLoop, initial_state
     from smibjax._parameters import InitialEstimates
 
     g = sj.Gains.paper("asc", beta1=beta[0], beta2=beta[1])
@@ -490,7 +497,7 @@ def test_the_paper_cases_linearization_has_the_manifold_roots(beta):
     loop = ClosedLoop(g, sj.Fault(), plant, op)
     y = initial_state(op, plant, InitialEstimates(), loop.controller)
     y = y.at[4].set(-plant.D).at[5].set(plant.Pm)  # the estimates at the truth
-    A = jax.jacfwd(lambda y: closed_loop_vector_field(0.0, y, loop))(y)[:6, :6]
+    A = _loop_jacobian(y, loop)[:6, :6]
     lam = np.linalg.eigvals(np.asarray(A))
     M = 2 * float(plant.H) / (2 * np.pi * float(plant.f))
     kappa = 1 / beta[0] + 1 / beta[1]
