@@ -90,10 +90,14 @@ def uninterrupted(tmp_path_factory):
 
 
 def paper_config(**over):
-    """tiny_config on tuning/configs/paper.toml (the paper's case)."""
+    """tiny_config on tuning/configs/paper.toml (the paper's case), its gradient steps
+    alone: from the paper's gains, the [search] stage off (the config's own run is a
+    search from a gains file, pinned by test_paper_config_search_is_pinned)."""
     from tuning.config import CONFIG_DIR
 
-    return tiny_config(CONFIG_DIR / "paper.toml", **over)
+    cfg = tiny_config(CONFIG_DIR / "paper.toml", **{"init": "paper", **over})
+    cfg["search"]["generations"] = 0
+    return cfg
 
 
 BUILDABLE_START = dict(
@@ -201,6 +205,23 @@ def test_gain_space_round_trip_and_sign_crossing():
         (lambda c: c["scenarios"].update(clear_duration=[0.3, 0.1]), "empty range"),
         (lambda c: c["search"].update(population=1), "search.population = 1"),
         (lambda c: c["search"].update(sigma=0.0), "search.sigma = 0.0"),
+        (
+            lambda c: c["search"]["scenarios"].update(fault_location=[0.05, 0.3]),
+            r"search.scenarios.fault_location = \[0.05, 0.3\] .* within "
+            r"scenarios.fault_location = \[0.1, 0.9\]",
+        ),
+        (
+            lambda c: c["search"]["scenarios"].update(fault_location=[0.3, 0.2]),
+            "a range lo <= hi",
+        ),
+        (
+            lambda c: c["search"]["scenarios"].update(location=[0.1, 0.2]),
+            "search.scenarios.location .* names a drawn range of",
+        ),
+        (
+            lambda c: c["search"]["scenarios"].update(fault_reactance=0.01),
+            "must be a range",
+        ),
         (lambda c: c["train"].update(t_end=0.5), "after the latest fault time"),
     ],
 )
@@ -552,13 +573,67 @@ def test_search_warm_start_end_to_end(tmp_path):
     steps start from its best, and the report shows it."""
     cfg = tiny_config(steps=0)
     cfg["search"].update(generations=1, population=3, batch=2)
+    cfg["search"]["scenarios"] = {"fault_location": [0.2, 0.3]}
     state = run(cfg, tmp_path)
     hist = state.search
     assert len(hist) == 1 and hist[0]["best_score"] <= hist[0]["mean_score"]
     from tuning.outputs import finish
 
     finish(cfg, tmp_path, state)
-    assert "CMA-ES (pycma)" in (tmp_path / "report.md").read_text()
+    report = (tmp_path / "report.md").read_text()
+    assert "CMA-ES (pycma)" in report and "fault_location in [0.2, 0.3]" in report
+
+
+def test_search_scenarios_narrow_the_search_batch_only():
+    """[search.scenarios] replaces the named ranges of the search's faults (drawn from
+    the search seed, so the same uniforms mapped onto the narrower range) and nothing
+    else: without it the search draws from [scenarios] itself; the validation set
+    does not move."""
+    from tuning.loop import search_distribution
+    from tuning.problem import validation_scenarios
+
+    cfg = load_config()
+    problem = build(cfg)
+    assert search_distribution(cfg, problem.dist) is problem.dist
+    narrow = copy.deepcopy(cfg)
+    narrow["search"]["scenarios"] = {"fault_location": [0.1, 0.25]}
+    check_config(narrow)
+    d = search_distribution(narrow, problem.dist)
+    assert d.to_dict() == {**problem.dist.to_dict(), "fault_location": [0.1, 0.25]}
+    key = jax.random.PRNGKey(int(cfg["search"]["seed"]))
+    plant = problem.setup.plant
+    wide, _ = draw_scenarios(key, 64, problem.dist, plant)
+    near, _ = draw_scenarios(key, 64, d, plant)
+    lam_w, lam_n = np.asarray(wide.lam), np.asarray(near.lam)
+    assert 0.1 <= lam_n.min() and lam_n.max() <= 0.25 and lam_w.max() > 0.5
+    # the same uniform u: lam = 0.1 + 0.8 u on [scenarios], 0.1 + 0.15 u narrowed
+    np.testing.assert_allclose(lam_n, 0.1 + (lam_w - 0.1) * 0.15 / 0.8, rtol=1e-12)
+    np.testing.assert_array_equal(np.asarray(near.t_fault), np.asarray(wide.t_fault))
+    v1, _ = validation_scenarios(cfg, build(cfg))
+    v2, _ = validation_scenarios(narrow, build(narrow))
+    np.testing.assert_array_equal(np.asarray(v1.lam), np.asarray(v2.lam))
+
+
+def test_a_relative_init_in_a_config_file_is_taken_from_its_folder(
+    tmp_path, monkeypatch
+):
+    """`init = "g.json"` in a config file names the file beside the config, whatever
+    the working directory; `--init` on the command line stays relative to it."""
+    from tuning.config import CONFIG_DIR
+
+    sub = tmp_path / "cfgs"
+    sub.mkdir()
+    gains = {**PAPER, "beta1": -0.25}
+    (sub / "g.json").write_text(json.dumps(gains))
+    (sub / "c.toml").write_text('init = "g.json"\n')
+    monkeypatch.chdir(tmp_path)
+    cfg = load_config(sub / "c.toml")
+    assert cfg["init"] == str(sub / "g.json")
+    assert build(cfg).init["beta1"] == -0.25
+    assert load_config(sub / "c.toml", flags={"init": "x.json"})["init"] == "x.json"
+    # paper.toml's start, from any working directory
+    want = CONFIG_DIR.parent.parent / "studies/paper_heldout/mixed_cma1_gains.json"
+    assert load_config(CONFIG_DIR / "paper.toml")["init"] == str(want.resolve())
 
 
 @TUNER
@@ -693,6 +768,9 @@ PAPER_STEP2_VALIDATION = {
     "tv_uf_mean": 468.9594273682751,
     "tv_ur_mean": 692.26123955984,
 }
+# (mean's score, generation's best score, its stable fraction) of the first two
+# generations of paper.toml's search, 3 candidates on 4 faults
+PAPER_SEARCH_SCORES = [(0.0, 0.0, 1.0), (0.0, 0.0, 1.0)]
 # tests/data/paper_tuned_gains.json: gains.json of `python -m tuning.optimize --config
 # tuning/configs/paper.toml` (2026-12-02, branch paper: 200 steps on the 1 ms grid at
 # learning rate 0.2 with the 1e-3 training layer, best validation at step 125; 100%
@@ -738,6 +816,48 @@ def test_paper_config_first_steps_are_pinned(tmp_path):
     v = state.validation[-1]
     for k, want in PAPER_STEP2_VALIDATION.items():
         assert v[k] == pytest.approx(want, rel=1e-6), k
+
+
+def test_paper_config_search_is_pinned():
+    """paper.toml's own run: the [search] stage from its gains file (the mixed-sign
+    start, taken from the config's folder) on faults near the SVC bus. Two
+    generations of 3 candidates on 4 of its faults (its seed, sigma and narrowed
+    ranges): the faults lie in the narrowed ranges, and each generation's scores (the
+    mean's, the best's, its stable fraction) are pinned to 1e-6 relative; any change
+    of the start, the seed, sigma, the ranges or the score moves them."""
+    import tuning.loop as loop
+    from tuning.config import CONFIG_DIR
+
+    cfg = load_config(CONFIG_DIR / "paper.toml")
+    assert cfg["steps"] == 0 and cfg["search"]["generations"] > 0
+    cfg["search"].update(generations=2, population=3, batch=4)
+    check_config(cfg)
+    problem = build(cfg)
+    assert problem.init["beta1"] < 0 < problem.init["beta2"]
+    faults = []
+    real = loop.cma_search
+
+    def seen(*a, **k):
+        faults.append(a[3][0])
+        return real(*a, **k)
+
+    raw0 = problem.space.to_raw(problem.init)
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(loop, "cma_search", seen)
+        best, hist = loop._search(
+            cfg, problem.space, problem.setup, problem.dist, raw0, quiet=True
+        )
+    lam, xf = np.asarray(faults[0].lam), np.asarray(faults[0].Xf)
+    lo, hi = cfg["search"]["scenarios"]["fault_location"]
+    assert lo <= lam.min() and lam.max() <= hi
+    lo, hi = cfg["search"]["scenarios"]["fault_reactance"]
+    assert lo <= xf.min() and xf.max() <= hi
+    got = [
+        (r["mean_score"], r["generation_best"], r["generation_best_stable"])
+        for r in hist
+    ]
+    print(got)
+    np.testing.assert_allclose(got, PAPER_SEARCH_SCORES, rtol=1e-6)
 
 
 def test_paper_config_tuned_gains_validation_is_pinned():
