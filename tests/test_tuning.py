@@ -90,14 +90,10 @@ def uninterrupted(tmp_path_factory):
 
 
 def paper_config(**over):
-    """tiny_config on tuning/configs/paper.toml (the paper's case), its gradient steps
-    alone: from the paper's gains, the [search] stage off (the config's own run is a
-    search from a gains file, pinned by test_paper_config_search_is_pinned)."""
+    """tiny_config on tuning/configs/paper.toml (the paper's case)."""
     from tuning.config import CONFIG_DIR
 
-    cfg = tiny_config(CONFIG_DIR / "paper.toml", **{"init": "paper", **over})
-    cfg["search"]["generations"] = 0
-    return cfg
+    return tiny_config(CONFIG_DIR / "paper.toml", **over)
 
 
 BUILDABLE_START = dict(
@@ -619,7 +615,7 @@ def test_a_relative_init_in_a_config_file_is_taken_from_its_folder(
 ):
     """`init = "g.json"` in a config file names the file beside the config, whatever
     the working directory; `--init` on the command line stays relative to it."""
-    from tuning.config import CONFIG_DIR
+    from helpers import ROOT
 
     sub = tmp_path / "cfgs"
     sub.mkdir()
@@ -631,9 +627,10 @@ def test_a_relative_init_in_a_config_file_is_taken_from_its_folder(
     assert cfg["init"] == str(sub / "g.json")
     assert build(cfg).init["beta1"] == -0.25
     assert load_config(sub / "c.toml", flags={"init": "x.json"})["init"] == "x.json"
-    # paper.toml's start, from any working directory
-    want = CONFIG_DIR.parent.parent / "studies/paper_heldout/mixed_cma1_gains.json"
-    assert load_config(CONFIG_DIR / "paper.toml")["init"] == str(want.resolve())
+    # the near-bus search's start, from any working directory
+    study = ROOT / "studies" / "paper_heldout"
+    got = load_config(study / "paper_mixed_search2.toml")["init"]
+    assert got == str(study / "mixed_cma1_gains.json")
 
 
 @TUNER
@@ -769,7 +766,8 @@ PAPER_STEP2_VALIDATION = {
     "tv_ur_mean": 692.26123955984,
 }
 # (mean's score, generation's best score, its stable fraction) of the first two
-# generations of paper.toml's search, 3 candidates on 4 faults
+# generations of the near-bus search (paper_mixed_search2.toml), 3 candidates on 4
+# faults
 PAPER_SEARCH_SCORES = [(0.0, 0.0, 1.0), (0.0, 0.0, 1.0)]
 # tests/data/paper_tuned_gains.json: gains.json of `python -m tuning.optimize --config
 # tuning/configs/paper.toml` (2026-12-02, branch paper: 200 steps on the 1 ms grid at
@@ -818,17 +816,18 @@ def test_paper_config_first_steps_are_pinned(tmp_path):
         assert v[k] == pytest.approx(want, rel=1e-6), k
 
 
-def test_paper_config_search_is_pinned():
-    """paper.toml's own run: the [search] stage from its gains file (the mixed-sign
-    start, taken from the config's folder) on faults near the SVC bus. Two
+def test_the_near_bus_search_is_pinned():
+    """The mixed-sign search of issue 33 (studies/paper_heldout/
+    paper_mixed_search2.toml: paper.toml's case, CMA-ES from a gains file taken from
+    the config's folder, candidates scored on faults near the SVC bus). Two
     generations of 3 candidates on 4 of its faults (its seed, sigma and narrowed
     ranges): the faults lie in the narrowed ranges, and each generation's scores (the
     mean's, the best's, its stable fraction) are pinned to 1e-6 relative; any change
     of the start, the seed, sigma, the ranges or the score moves them."""
     import tuning.loop as loop
-    from tuning.config import CONFIG_DIR
+    from helpers import ROOT
 
-    cfg = load_config(CONFIG_DIR / "paper.toml")
+    cfg = load_config(ROOT / "studies" / "paper_heldout" / "paper_mixed_search2.toml")
     assert cfg["steps"] == 0 and cfg["search"]["generations"] > 0
     cfg["search"].update(generations=2, population=3, batch=4)
     check_config(cfg)
