@@ -31,7 +31,7 @@ MIXED = {"beta1": -0.1362, "beta2": 0.2366, "T1": 0.0036, "T2": 7.83, "alpha": 0
 MIXED |= {"gamma1": 5.0, "gamma2": 5.0, "k1": 1.0, "k2": 6.4508, "c1": 1.0, "c2": 1.0}
 
 GAIN_FILES = {
-    "tuned": ROOT / "tests" / "data" / "paper_tuned_gains.json",
+    "tuned": ROOT / "studies" / "paper_heldout" / "paper_grad_gains.json",
     "seed1": ROOT / "studies" / "paper_heldout" / "paper_seed1_gains.json",
     "1202": ROOT / "studies" / "paper_heldout" / "paper_1202_gains.json",
 }

@@ -12,7 +12,7 @@ CONFIG_DIR = Path(__file__).parent / "configs"
 DEFAULT = CONFIG_DIR / "default.toml"
 
 # Tables whose keys are free (gain names), checked elsewhere.
-_FREE_TABLES = {("gains", "bounds")}
+_FREE_TABLES = {("gains", "bounds"), ("search", "scenarios")}
 
 
 def load_toml(path: str | Path) -> dict:
@@ -117,8 +117,13 @@ def load_config(
     overridden by the file at `path` (if any), then by `flags` (top-level keys set on
     the command line). The controller is `controller`, else `flags`', else the
     file's, else the default's (aftsc). A key that does not apply to that controller
-    is refused in one line."""
+    is refused in one line. A relative `init` (gains file) in the file is taken from
+    the file's folder (on the command line: from the working directory)."""
     user = load_toml(path) if path is not None else {}
+    init = user.get("init")
+    if isinstance(init, str) and init != "paper" and not Path(init).is_absolute():
+        # a gains file named in a config file: relative to the file's folder
+        user["init"] = str((Path(path).resolve().parent / init).resolve())
     flags = {k: v for k, v in (flags or {}).items() if v is not None}
     chosen = (
         controller
@@ -420,6 +425,24 @@ def _check_meaning(cfg: dict) -> None:
         if k == "D" and v == []:  # the plant's own damping, not drawn
             continue
         ranges[k] = _check_range(f"scenarios.{k}", v)
+    for k, v in cfg["search"]["scenarios"].items():
+        req(
+            k in cfg["scenarios"] and not (k == "D" and cfg["scenarios"][k] == []),
+            f"search.scenarios.{k}",
+            v,
+            "names a drawn range of [scenarios] ("
+            + ", ".join(n for n, r in cfg["scenarios"].items() if r != [])
+            + ")",
+        )
+        lo, hi = _check_range(f"search.scenarios.{k}", v)
+        base = ranges[k]
+        req(
+            base[0] <= lo <= hi <= base[1],
+            f"search.scenarios.{k}",
+            v,
+            f"must be a range lo <= hi within scenarios.{k} = "
+            f"[{base[0]:g}, {base[1]:g}]",
+        )
     if "t_fault" in ranges and "clear_duration" in ranges:
         latest = ranges["t_fault"][1] + ranges["clear_duration"][1]
         for part in ("train", "validation"):

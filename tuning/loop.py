@@ -204,13 +204,28 @@ def _progress(total, initial, quiet, make):
     )
 
 
+def search_distribution(cfg: dict, dist):
+    """The distribution of the search's faults: `dist` (the config's [scenarios])
+    with the ranges named in [search.scenarios] replaced (the same object when none
+    is)."""
+    narrowed = cfg["search"].get("scenarios", {})
+    if not narrowed:
+        return dist
+    return type(dist).from_dict(
+        {**dist.to_dict(), **{k: list(map(float, v)) for k, v in narrowed.items()}}
+    )
+
+
 def _search(cfg, space, setup, dist, raw0, quiet):
     """The optional gradient-free warm start ([search] in the config)."""
     sc = cfg["search"]
     if int(sc["generations"]) == 0:
         return raw0, []
     faults = draw_scenarios(
-        jax.random.PRNGKey(int(sc["seed"])), int(sc["batch"]), dist, setup.plant
+        jax.random.PRNGKey(int(sc["seed"])),
+        int(sc["batch"]),
+        search_distribution(cfg, dist),
+        setup.plant,
     )
 
     def report(row):

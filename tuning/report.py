@@ -115,6 +115,9 @@ def _search_lines(cfg: dict, state) -> list[str]:
         return []
     sc = cfg["search"]
     last = hist[-1]
+    narrowed = "".join(
+        f", {k} in [{v[0]:g}, {v[1]:g}]" for k, v in sc.get("scenarios", {}).items()
+    )
     return [
         "## Gradient-free warm start",
         "",
@@ -122,7 +125,7 @@ def _search_lines(cfg: dict, state) -> list[str]:
         f"{sc['population']} candidates (initial step size {sc['sigma']}, final "
         f"{last.get('sigma', float('nan')):.3g}), each scored on {sc['batch']} "
         f"fixed faults (seed "
-        f"{sc['seed']}) with the adaptive solver: mean delta settling time, "
+        f"{sc['seed']}{narrowed}) with the adaptive solver: mean delta settling time, "
         f"{2 * float(cfg['validation']['t_end']):g} s for an unstable run. Score of "
         f"the start {hist[0]['mean_score']:.3f} s; best score "
         f"{last['best_score']:.3f} s. The gradient steps start from the best "

@@ -180,7 +180,7 @@ def load_gains(path: Path) -> dict:
 
 
 GAIN_SETS = {
-    "paper_tuned_gains.json": ROOT / "tests" / "data" / "paper_tuned_gains.json",
+    "paper_grad_gains.json": HERE / "paper_grad_gains.json",
     "paper_seed1_gains.json": HERE / "paper_seed1_gains.json",
     "paper_1202_gains.json": HERE / "paper_1202_gains.json",
     "bfd8280_gains.json": HERE / "bfd8280_gains.json",

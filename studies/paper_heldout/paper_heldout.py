@@ -32,6 +32,7 @@ from tuning.problem import build, make_validation, validation_scenarios  # noqa:
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent.parent
 SETS = (("validation", 1000, 256), ("held-out", 4242, 512), ("held-out", 777, 1024))
+LARGE = (("held-out", 31337, 4096),)
 
 
 def evaluate(gains: Path, seed: int, n: int) -> dict:
@@ -73,13 +74,16 @@ def line_out(gains: Path) -> dict:
 
 
 def main() -> None:
-    files = [Path(a) for a in sys.argv[1:]] or [
+    args = sys.argv[1:]
+    large = "--large" in args
+    files = [Path(a) for a in args if a != "--large"] or [
         ROOT / "tests" / "data" / "paper_tuned_gains.json",
         *sorted(HERE.glob("*_gains.json")),
     ]
-    out = {}
+    path = HERE / "heldout.json"
+    out = json.loads(path.read_text()) if path.exists() else {}
     for f in files:
-        for name, seed, n in SETS:
+        for name, seed, n in SETS + (LARGE if large else ()):
             t0 = time.perf_counter()
             r = evaluate(f, seed, n)
             out[f"{f.name} {name} seed {seed} n {n}"] = r
@@ -96,7 +100,9 @@ def main() -> None:
             f"{f.name:28} line out: "
             + " ".join(f"{k} s {v:+.4f}" for k, v in lo.items())
         )
-    (HERE / "heldout.json").write_text(json.dumps(out, indent=1) + "\n")
+        tmp = path.with_suffix(".tmp")
+        tmp.write_text(json.dumps(out, indent=1) + "\n")
+        tmp.replace(path)  # after each file: a long run keeps what it finished
 
 
 if __name__ == "__main__":

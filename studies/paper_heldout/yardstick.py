@@ -85,7 +85,7 @@ def summary(ts, stable):
 def main() -> None:
     files = [Path(a) for a in sys.argv[1:]] or [
         HERE / "bfd8280_gains.json",
-        ROOT / "tests" / "data" / "paper_tuned_gains.json",
+        HERE / "paper_grad_gains.json",
     ]
     cfg = load_config(CONFIG_DIR / "paper.toml")
     cfg["validation"].update(seed=777, n=1024)
