@@ -28,6 +28,9 @@ import numpy as np  # noqa: E402
 import smibjax as sj  # noqa: E402
 from smibjax._closed_loop import _b_max  # noqa: E402
 from smibjax._network import fault_stage, postfault_stage, prefault_stage  # noqa: E402
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # the tuning package
+
 from tuning.config import CONFIG_DIR, load_config  # noqa: E402
 from tuning.problem import build, validation_scenarios  # noqa: E402
 

@@ -26,6 +26,8 @@ configure()
 
 import numpy as np  # noqa: E402
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # the tuning package
+
 from tuning.config import CONFIG_DIR, load_config  # noqa: E402
 from tuning.problem import build, make_validation, validation_scenarios  # noqa: E402
 

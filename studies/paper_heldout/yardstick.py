@@ -25,6 +25,9 @@ import jax.numpy as jnp  # noqa: E402
 import numpy as np  # noqa: E402
 
 import smibjax as sj  # noqa: E402
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # the tuning package
+
 from tuning.config import CONFIG_DIR, load_config  # noqa: E402
 from tuning.problem import build, validation_scenarios  # noqa: E402
 
