@@ -140,3 +140,25 @@ def test_bfd8280s_line_out_rest_point_is_unstable():
     bfd = out["bfd8280"][np.argmax(out["bfd8280"].real)]
     assert 1.5 < bfd.real < 3.0 and 25 < abs(bfd.imag) < 35
     assert out["tuned"].real.max() == pytest.approx(-0.991, abs=2e-3)
+
+
+def test_the_study_scripts_refuse_a_bad_argument_in_one_line(tmp_path, capsys):
+    """studies/paper_heldout's command lines: a missing gains file or an unknown
+    option is one line and exit 2; gains files and the allowed flags pass through."""
+    spec = importlib.util.spec_from_file_location(
+        "paper_heldout_cli", ROOT / "studies" / "paper_heldout" / "_cli.py"
+    )
+    cli = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(cli)
+    good = tmp_path / "g.json"
+    good.write_text("{}")
+    assert cli.gains_args([str(good), "--large"], "doc", ("--large",)) == (
+        [good],
+        {"--large"},
+    )
+    for argv in ([str(tmp_path / "none.json")], ["--large"]):
+        with pytest.raises(SystemExit) as e:
+            cli.gains_args(argv, "doc")
+        assert e.value.code == 2
+        err = capsys.readouterr().err.strip()
+        assert len(err.splitlines()) == 1 and "is not allowed" in err, err

@@ -31,6 +31,8 @@ from smibjax._network import fault_stage, postfault_stage, prefault_stage  # noq
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # the tuning package
 
+from _cli import gains_args  # noqa: E402
+
 from tuning.config import CONFIG_DIR, load_config  # noqa: E402
 from tuning.problem import build, validation_scenarios  # noqa: E402
 
@@ -87,7 +89,7 @@ def margins(gains: Path, seed: int = 777, n: int = 1024) -> dict:
 def main() -> None:
     path = HERE / "margin.json"
     out = json.loads(path.read_text()) if path.exists() else {}
-    for a in sys.argv[1:]:
+    for a in gains_args(sys.argv[1:], __doc__)[0]:
         r = out[Path(a).name] = margins(Path(a))
         print(
             f"{Path(a).name:28} {r['runs']} near-bus runs, "

@@ -28,6 +28,8 @@ import numpy as np  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # the tuning package
 
+from _cli import gains_args  # noqa: E402
+
 from tuning.config import CONFIG_DIR, load_config  # noqa: E402
 from tuning.problem import build, make_validation, validation_scenarios  # noqa: E402
 
@@ -76,9 +78,9 @@ def line_out(gains: Path) -> dict:
 
 
 def main() -> None:
-    args = sys.argv[1:]
-    large = "--large" in args
-    files = [Path(a) for a in args if a != "--large"] or [
+    files, flags = gains_args(sys.argv[1:], __doc__, ("--large",))
+    large = "--large" in flags
+    files = files or [
         ROOT / "tests" / "data" / "paper_tuned_gains.json",
         *sorted(HERE.glob("*_gains.json")),
     ]

@@ -28,6 +28,8 @@ import smibjax as sj  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # the tuning package
 
+from _cli import gains_args  # noqa: E402
+
 from tuning.config import CONFIG_DIR, load_config  # noqa: E402
 from tuning.problem import build, validation_scenarios  # noqa: E402
 
@@ -86,7 +88,7 @@ def summary(ts, stable):
 
 
 def main() -> None:
-    files = [Path(a) for a in sys.argv[1:]] or [
+    files = gains_args(sys.argv[1:], __doc__)[0] or [
         HERE / "bfd8280_gains.json",
         HERE / "paper_grad_gains.json",
     ]
