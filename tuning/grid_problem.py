@@ -105,12 +105,8 @@ def load_case_from(cfg: dict):
 
     c = cfg["case"]
     try:
-        case = (
-            load_case_reporting(c["name"])
-            if c["name"]
-            else load_case_reporting(
-                c["raw"], c["dyr"], c.get("skip_unsupported", False)
-            )
+        case = load_case_reporting(
+            c["name"] or c["raw"], c["dyr"] or None, c["skip_unsupported"]
         )
     except (CaseError, OSError, ValueError) as e:
         msg = str(e).splitlines()[0] if str(e) else type(e).__name__

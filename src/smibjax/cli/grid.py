@@ -43,13 +43,6 @@ def load_case_reporting(name_or_raw, dyr=None, skip_unsupported=False):
     return case
 
 
-def load_case_warning(args):
-    """`load_case_reporting` of --case, --dyr, --skip-unsupported."""
-    return load_case_reporting(
-        args.case, args.dyr, getattr(args, "skip_unsupported", False)
-    )
-
-
 def add_case_options(p, events: bool = True) -> None:
     """The options that choose a multi-machine case (and, for `events`, the events
     of one run)."""
@@ -156,7 +149,7 @@ def load(args):
     if not (args.load_factor > 0 and math.isfinite(args.load_factor)):
         raise CLIError(f"--load-factor {args.load_factor} is not allowed: must be > 0")
     try:
-        case = load_case_warning(args)
+        case = load_case_reporting(args.case, args.dyr, args.skip_unsupported)
         params = _params(args.param)
         if params:
             case = set_params(case, params)

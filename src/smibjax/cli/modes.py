@@ -144,10 +144,10 @@ def _gains_file(path) -> dict:
 def _load(args):
     from ..grid.case import CaseError
     from ..grid.params import ParamError, get_param, set_params
-    from .grid import load_case_warning
+    from .grid import load_case_reporting
 
     try:
-        case = load_case_warning(args)
+        case = load_case_reporting(args.case, args.dyr, args.skip_unsupported)
     except (CaseError, FileNotFoundError) as e:
         raise CLIError(f"--case {args.case!r} is not allowed: {e}") from None
     sets = {**_gains_file(args.gains), **parse_sets(args.set)}

@@ -69,7 +69,7 @@ class GENCLS(AbstractMachine):
             "Te": jnp.real(e * jnp.conj(i)),
             # no field circuit: the constant |E'| stands for the field current on the
             # Xad base (what XadIfd is at rest on the other machines)
-            "XadIfd": held["Efd"] + 0.0 * x[0],
+            "XadIfd": held["Efd"],
         }
 
     def rhs(self, x, v, cmd, held, s_base):
