@@ -1,6 +1,7 @@
-"""A pytest plugin for `suite_time.py`: per test, its wall and process-CPU seconds and
-the JAX compilation events it caused, written per process (the controller and each
-pytest-xdist worker) to $SMIBJAX_SUITE_PROFILE/NAME.json at the end of the session.
+"""A pytest plugin for `suite_time.py`: per test, its wall and process-CPU seconds,
+the CPU seconds of the subprocesses it ran and waited for, and the JAX compilation
+events it caused, written per process (the controller and each pytest-xdist worker)
+to $SMIBJAX_SUITE_PROFILE/NAME.json at the end of the session.
 
 Loaded with `-p _suite_profile` (this folder on PYTHONPATH); does nothing unless
 SMIBJAX_SUITE_PROFILE names a folder. The events are JAX's own
@@ -12,6 +13,7 @@ from __future__ import annotations
 
 import json
 import os
+import resource
 import time
 from collections import defaultdict
 
@@ -29,7 +31,8 @@ EVENTS = {
 
 class _Profile:
     def __init__(self):
-        self.tests = []  # [nodeid, start epoch s, wall s, cpu s, {event: [n, s]}]
+        # [nodeid, start epoch s, wall s, cpu s, {event: [n, s]}, children's cpu s]
+        self.tests = []
         self.outside = defaultdict(lambda: [0, 0.0])  # collection, between tests
         self.current = self.outside  # where events go now
         self.programs = defaultdict(lambda: [0, 0.0])  # compile: fun_name -> [n, s]
@@ -59,16 +62,24 @@ def pytest_configure(config):
     config._suite_profile = True
 
 
+def _children_cpu() -> float:
+    """User + system CPU seconds of this process's ended, waited-for child
+    processes (a test's subprocesses)."""
+    r = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return r.ru_utime + r.ru_stime
+
+
 @pytest.hookimpl(hookwrapper=True)
 def pytest_runtest_protocol(item, nextitem):
     if not getattr(item.config, "_suite_profile", False):
         yield
         return
     _profile.current = defaultdict(lambda: [0, 0.0])
-    t0, c0 = time.time(), time.process_time()
+    t0, c0, k0 = time.time(), time.process_time(), _children_cpu()
     yield
     wall, cpu = time.time() - t0, time.process_time() - c0
-    _profile.tests.append([item.nodeid, t0, wall, cpu, dict(_profile.current)])
+    kids = _children_cpu() - k0
+    _profile.tests.append([item.nodeid, t0, wall, cpu, dict(_profile.current), kids])
     _profile.current = _profile.outside
 
 

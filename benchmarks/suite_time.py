@@ -124,7 +124,7 @@ def summarize(profiles: list[dict], start: float, top: int = 12) -> dict:
             for k, (n, s) in ev.items():
                 events[k][0] += n
                 events[k][1] += s
-        for nodeid, _, wall, cpu, ev in rows:
+        for nodeid, _, wall, cpu, ev, *kids in rows:
             modules[nodeid.split("::")[0]] += wall
             comp = ev.get("compile", [0, 0.0])
             tests.append(
@@ -132,6 +132,7 @@ def summarize(profiles: list[dict], start: float, top: int = 12) -> dict:
                     "test": nodeid,
                     "wall_s": wall,
                     "cpu_s": cpu,
+                    "children_cpu_s": kids[0] if kids else None,
                     "compiles": comp[0],
                     "compile_s": comp[1],
                     "trace_s": ev.get("trace", [0, 0.0])[1],
