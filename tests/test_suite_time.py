@@ -100,6 +100,11 @@ def test_profiler_plugin_records_each_test_and_its_compiles(tmp_path):
         "    assert float(jax.jit(tiny_program)(1.0)) > 0\n"
         "def test_nothing():\n"
         "    pass\n"
+        "def test_child():\n"
+        "    import subprocess, sys\n"
+        "    code = 'import time\\nt = time.process_time()\\n'"
+        " 'while time.process_time() - t < 0.3: pass'\n"
+        "    subprocess.run([sys.executable, '-c', code], check=True)\n"
     )
     out = tmp_path / "profile"
     out.mkdir()
@@ -121,10 +126,17 @@ def test_profiler_plugin_records_each_test_and_its_compiles(tmp_path):
     assert p.returncode == 0, p.stdout[-2000:] + p.stderr[-2000:]
     prof = json.loads((out / "controller.json").read_text())
     rows = {r[0]: r for r in prof["tests"]}
-    assert set(rows) == {"test_tiny.py::test_jit", "test_tiny.py::test_nothing"}
+    assert set(rows) == {
+        "test_tiny.py::test_jit",
+        "test_tiny.py::test_nothing",
+        "test_tiny.py::test_child",
+    }
     jit_row = rows["test_tiny.py::test_jit"]
     assert jit_row[4]["compile"][0] >= 1 and jit_row[4]["trace"][0] >= 1
     assert "compile" not in rows["test_tiny.py::test_nothing"][4]
+    # the CPU of a test's subprocess is the test's (it burns 0.3 CPU-s), not another's
+    assert rows["test_tiny.py::test_child"][5] >= 0.3
+    assert rows["test_tiny.py::test_nothing"][5] < 0.05
     assert prof["programs"]["jit(tiny_program)"][0] == 1
     assert prof["programs"]["jit(at_import)"][0] == 1
     assert prof["outside_tests"]["compile"][0] >= 1  # kept, not dropped at test start
