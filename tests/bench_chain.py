@@ -88,9 +88,12 @@ TINY = {
 # order) and the others. At the end of a session the workers are idle while the
 # chain's last scripts run; two chains leave less to run then. tuning_grid first: its
 # programs are the grid tuner tests' (`ONE_DEVICE`), which then read them (the tests
-# of tests/test_tuning_grid.py run late in a session).
+# of tests/test_tuning_grid.py run late in a session). montecarlo and cluster_scaling
+# first in theirs: cluster_scaling's Dask worker compiles tests/test_cluster.py's
+# workers' program (an early module; when it runs first, its two workers compile it
+# side by side and the script reads it).
 LANES = (
-    ("throughput", "vs_scipy", "montecarlo", "cluster_scaling"),
+    ("montecarlo", "cluster_scaling", "throughput", "vs_scipy"),
     ("tuning_grid", "gradients", "compile", "stiff_solvers"),
 )
 
