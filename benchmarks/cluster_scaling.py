@@ -34,6 +34,7 @@ import numpy as np
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
+from _common import enable_cache
 from _results import write_results
 
 import smibjax as sj
@@ -152,6 +153,11 @@ def main() -> None:
     ap.add_argument("--roundtrips", type=int, default=50)
     ap.add_argument("--out", default=str(Path(__file__).parent / "results"))
     args = ap.parse_args()
+    # the persistent cache only where SMIBJAX_CACHE_DIR is set (the test suite's:
+    # montecarlo.py's tiny run compiled the in-process programs, and the Dask
+    # workers, which get the folder, share theirs with tests/test_cluster.py's); the
+    # JSON says whether it was on
+    enable_cache()
     spec = make_spec(args.n, args.chunk, args.t_end)
     all_devices = jax.devices()
     rows, ref = {}, None

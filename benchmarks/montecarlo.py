@@ -22,7 +22,7 @@ import time
 from pathlib import Path
 
 import jax
-from _common import add_tolerance_args, result_name, solver_of
+from _common import add_tolerance_args, enable_cache, result_name, solver_of
 from _results import write_results
 
 import smibjax as sj
@@ -40,6 +40,10 @@ def main() -> None:
     add_tolerance_args(ap)
     ap.add_argument("--out", default=str(Path(__file__).parent / "results"))
     args = ap.parse_args()
+    # the persistent cache only where SMIBJAX_CACHE_DIR is set (the test suite's, so
+    # that cluster_scaling.py's tiny run reads this one's programs); "first chunk"
+    # is then a warm-cache figure, which the JSON says
+    cache = enable_cache()
     result = result_name("montecarlo", args.tag)
     g = sj.Gains.paper("aftsc", beta1=-1.0, beta2=-1.0)
     spec = MonteCarloSpec(
@@ -93,6 +97,7 @@ def main() -> None:
             "t_end": args.t_end,
             "controller": "aftsc, beta1 = beta2 = -1",
             "solver": f"Tsit5 adaptive, rtol {args.rtol:g}, atol {args.atol:g}",
+            "persistent_compilation_cache": bool(cache),
         },
         {
             "devices": len(jax.devices()),

@@ -55,18 +55,25 @@ TINY = {
         "--repeat",
         "1",
     ],
-    "montecarlo": ["--n", "8", "--chunk", "4", "--t-end", "1.3"],
-    "cluster_scaling": ["--n", "8", "--chunk", "4", "--t-end", "1.3", "--workers", "1"]
+    # montecarlo and cluster_scaling: tests/test_cluster.py's chunk of 4 and horizon
+    # (3 s), with the suite's cache (the scripts turn it on where SMIBJAX_CACHE_DIR
+    # is set): cluster_scaling's in-process runs read montecarlo's programs, and its
+    # Dask worker's program is test_cluster's workers' (one device each)
+    "montecarlo": ["--n", "8", "--chunk", "4", "--t-end", "3"],
+    "cluster_scaling": ["--n", "8", "--chunk", "4", "--t-end", "3", "--workers", "1"]
     + ["--roundtrips", "3"],
     "stiff_solvers": ["--methods", "RK45", "Radau", "--t-end", "1.0"],
     "compile": ["--cases", "simulate", "--repeat", "1", "--t-end", "0.8"],
-    # paper.toml's training (1 ms grid, the 1e-3 training layer since 2026-12-02):
-    # d/d gamma2 curves within 1e-5 raw units (relative error 3.5e-2 at eps 1e-5,
-    # 1.6e-3 at 3e-6, 7e-4 at 2e-6, 3e-5 at 1e-7) while d/d T2 (3.6e-5) is small
-    # against the loss's rounding (1.6e-2 at 1e-6, 6.5e-2 at 1e-7, 8e-5 at 2e-6):
-    # 2e-6 leaves both at least 10x inside the test's 1e-2
-    "gradients": ["--batch", "1", "--t-end", "1.5", "--repeat", "1"]
-    + ["--fd-eps", "2e-6"],
+    # paper.toml's training (1 ms grid, the 1e-3 training layer since 2026-12-02) on
+    # tests/test_tuning.py's tiny run shape (batch 2, 3 s), with the suite's one host
+    # device (`ONE_DEVICE`): its value-and-grad program is then the paper-step tests'
+    # (`PAPER_STEP`, the same key in the persistent cache; measured 2026-12-02:
+    # test_paper_config_first_steps_are_pinned 25.3 CPU-s cold, 16.2 after this run).
+    # Relative errors of the central differences at this shape (d/d T2 0.29, d/d
+    # gamma2 0.033): eps 5e-6: 6e-5, 9.3e-4; 2e-6: 9.1e-5, 1.5e-3; 1e-6: 2.8e-4,
+    # 3.7e-4, at least 27x inside the test's 1e-2
+    "gradients": ["--batch", "2", "--t-end", "3", "--repeat", "1"]
+    + ["--fd-eps", "1e-6"],
     # the tiny SMIB + SEXS + IEEEST case of the tuner's tests: 4 training simulations
     # per tuner, 3 held-out faults. Kundur's cost 127 CPU-s cold, this 70-85. Run
     # with the suite's one host device (`ONE_DEVICE`): its gradient run's programs are
@@ -81,9 +88,12 @@ TINY = {
 # order) and the others. At the end of a session the workers are idle while the
 # chain's last scripts run; two chains leave less to run then. tuning_grid first: its
 # programs are the grid tuner tests' (`ONE_DEVICE`), which then read them (the tests
-# of tests/test_tuning_grid.py run late in a session).
+# of tests/test_tuning_grid.py run late in a session). montecarlo and cluster_scaling
+# first in theirs: cluster_scaling's Dask worker compiles tests/test_cluster.py's
+# workers' program (an early module; when it runs first, its two workers compile it
+# side by side and the script reads it).
 LANES = (
-    ("throughput", "vs_scipy", "montecarlo", "cluster_scaling"),
+    ("montecarlo", "cluster_scaling", "throughput", "vs_scipy"),
     ("tuning_grid", "gradients", "compile", "stiff_solvers"),
 )
 
@@ -93,8 +103,9 @@ LANES = (
 # so a program compiled in a process with 2 host devices is never found by one with 1
 # (measured 2026-12-02: benchmarks/tuning_grid.py's training step, the same module
 # text, missed test_tuning_grid's entry with 2 devices and hit it with 1). The grid
-# tuner runs on one device either way.
-ONE_DEVICE = frozenset({"tuning_grid"})
+# tuner runs on one device either way; gradients.py's batch of 2 is one slice on one
+# device (its JSON's figures are then one core's).
+ONE_DEVICE = frozenset({"tuning_grid", "gradients"})
 
 
 def script(name: str) -> Path:

@@ -517,6 +517,10 @@ def make_loss(problem: GridProblem):
         n = jnp.maximum(jnp.sum(keep), 1.0)
         mean = {k: jnp.sum(v * keep) / n for k, v in terms.items()}
         d, zmin = damping_term(problem, raw, refs)
+        if not lc["damping"]:
+            # weight 0: the term adds nothing to the value or the gradient; no
+            # reverse pass through the eigenvalues (zeta_min is still reported)
+            d, zmin = jax.lax.stop_gradient((d, zmin))
         mean["damping"] = d
         total = sum(lc[k] * mean[k] for k in TERMS)
         info = {
