@@ -45,7 +45,7 @@ def _value_and_grad():
             dt=2e-3,
             ts=ts,
         )
-        return jnp.sum(sol.samples**2) + f.Xf * jnp.sum(sol.y_hold)
+        return jnp.sum(sol.samples**2)
 
     return jax.vmap(jax.value_and_grad(one), in_axes=(None, 0))
 

@@ -38,7 +38,6 @@ from smibjax import configure
 configure(cache=False)
 
 import argparse
-import time
 
 import diffrax as dfx
 import equinox.internal as eqxi
@@ -46,7 +45,7 @@ import jax
 import jax.lax as lax
 import jax.numpy as jnp
 import numpy as np
-from _common import result_name
+from _common import result_name, timed
 from _results import write_results
 
 import smibjax as sj
@@ -154,19 +153,6 @@ def bare_field_program(evals: int):
     return jax.jit(jax.vmap(one))
 
 
-def best_of(fn, repeat: int):
-    """(first call s, best later call s, last output)."""
-    t0 = time.perf_counter()
-    out = jax.block_until_ready(fn())
-    first = time.perf_counter() - t0
-    best = float("inf")
-    for _ in range(max(repeat, 1)):
-        t0 = time.perf_counter()
-        out = jax.block_until_ready(fn())
-        best = min(best, time.perf_counter() - t0)
-    return first, best, out
-
-
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--n", type=int, default=1024)
@@ -181,8 +167,11 @@ def main(argv=None) -> None:
     faults = jax.device_put(faults, dev[0])
     engine = Engine()
     rows = {}
-    _, s, _ = best_of(
-        lambda: engine.run(GAINS, Scenarios(faults), devices=dev), args.repeat
+    _, s, _ = timed(
+        lambda: jax.block_until_ready(
+            engine.run(GAINS, Scenarios(faults), devices=dev)
+        ),
+        args.repeat,
     )
     rows["engine"] = {"seconds": s}
     ref = None
@@ -193,7 +182,9 @@ def main(argv=None) -> None:
         ("unrolled_stages", {"unrolled": True}),
     ):
         fn = solve_program(**kw)
-        _, s, (delta, acc, rej) = best_of(lambda fn=fn: fn(faults), args.repeat)
+        _, s, (delta, acc, rej) = timed(
+            lambda fn=fn: jax.block_until_ready(fn(faults)), args.repeat
+        )
         delta = np.asarray(delta)
         row = {
             "seconds": s,
@@ -212,7 +203,7 @@ def main(argv=None) -> None:
         print(name, row, flush=True)
     evals = _NS * rows["solve"]["steps_max"]
     fn = bare_field_program(evals)
-    _, s, _ = best_of(lambda: fn(faults), args.repeat)
+    _, s, _ = timed(lambda: jax.block_until_ready(fn(faults)), args.repeat)
     rows["bare_field"] = {
         "seconds": s,
         "evals_per_lane": evals,
