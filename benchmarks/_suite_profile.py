@@ -31,8 +31,10 @@ EVENTS = {
 
 class _Profile:
     def __init__(self):
-        # [nodeid, start epoch s, wall s, cpu s, {event: [n, s]}, children's cpu s]
+        # [nodeid, start epoch s, wall s, cpu s, {event: [n, s]}, children's cpu s,
+        #  {program: [n, s]} of its XLA compiles]
         self.tests = []
+        self.test_programs = defaultdict(lambda: [0, 0.0])
         self.outside = defaultdict(lambda: [0, 0.0])  # collection, between tests
         self.current = self.outside  # where events go now
         self.programs = defaultdict(lambda: [0, 0.0])  # compile: fun_name -> [n, s]
@@ -45,9 +47,10 @@ class _Profile:
         slot[0] += 1
         slot[1] += float(duration)
         if short == "compile":
-            prog = self.programs[str(kw.get("fun_name", "?"))]
-            prog[0] += 1
-            prog[1] += float(duration)
+            name = str(kw.get("fun_name", "?"))
+            for table in (self.programs, self.test_programs):
+                table[name][0] += 1
+                table[name][1] += float(duration)
 
 
 _profile = _Profile()
@@ -75,11 +78,15 @@ def pytest_runtest_protocol(item, nextitem):
         yield
         return
     _profile.current = defaultdict(lambda: [0, 0.0])
+    _profile.test_programs = defaultdict(lambda: [0, 0.0])
     t0, c0, k0 = time.time(), time.process_time(), _children_cpu()
     yield
     wall, cpu = time.time() - t0, time.process_time() - c0
     kids = _children_cpu() - k0
-    _profile.tests.append([item.nodeid, t0, wall, cpu, dict(_profile.current), kids])
+    progs = dict(_profile.test_programs)
+    _profile.tests.append(
+        [item.nodeid, t0, wall, cpu, dict(_profile.current), kids, progs]
+    )
     _profile.current = _profile.outside
 
 

@@ -124,7 +124,9 @@ def summarize(profiles: list[dict], start: float, top: int = 12) -> dict:
             for k, (n, s) in ev.items():
                 events[k][0] += n
                 events[k][1] += s
-        for nodeid, _, wall, cpu, ev, *kids in rows:
+        for nodeid, _, wall, cpu, ev, *more in rows:
+            kids = more[:1]
+            progs = more[1] if len(more) > 1 else {}
             modules[nodeid.split("::")[0]] += wall
             comp = ev.get("compile", [0, 0.0])
             tests.append(
@@ -136,6 +138,8 @@ def summarize(profiles: list[dict], start: float, top: int = 12) -> dict:
                     "compiles": comp[0],
                     "compile_s": comp[1],
                     "trace_s": ev.get("trace", [0, 0.0])[1],
+                    # its XLA compiles of at least 0.2 s: {function: [count, s]}
+                    "programs": {k: v for k, v in progs.items() if v[1] >= 0.2},
                 }
             )
         for name, (n, s) in prof["programs"].items():

@@ -137,6 +137,10 @@ def test_profiler_plugin_records_each_test_and_its_compiles(tmp_path):
     # the CPU of a test's subprocess is the test's (it burns 0.3 CPU-s), not another's
     assert rows["test_tiny.py::test_child"][5] >= 0.3
     assert rows["test_tiny.py::test_nothing"][5] < 0.05
+    # each test's own programs: the at-import compile is nobody's
+    assert rows["test_tiny.py::test_jit"][6]["jit(tiny_program)"][0] == 1
+    assert "jit(at_import)" not in rows["test_tiny.py::test_jit"][6]
+    assert rows["test_tiny.py::test_nothing"][6] == {}
     assert prof["programs"]["jit(tiny_program)"][0] == 1
     assert prof["programs"]["jit(at_import)"][0] == 1
     assert prof["outside_tests"]["compile"][0] >= 1  # kept, not dropped at test start
