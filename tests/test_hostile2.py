@@ -12,7 +12,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 import tomllib
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
 import smibjax as sj
@@ -289,6 +289,10 @@ def test_damaged_tuner_checkpoint_one_line(text, tmp_path):
     deadline=None,
     suppress_health_check=[HealthCheck.function_scoped_fixture],
 )
+# keys that would break the one line if shown as written (found by this test)
+@example({"\n": 2**63})
+@example({"a\nb": "x"})
+@example({"": {"\r": -(2**64)}})
 @given(
     st.recursive(
         st.one_of(

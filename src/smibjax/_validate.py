@@ -255,13 +255,21 @@ def require_memory(what: str, runs: float, samples: float, hint: str) -> None:
         )
 
 
+def show_key(k) -> str:
+    """A key of an input file for an error line: as written where it is plain
+    printable text, else quoted with its escapes (a key holding a newline or nothing
+    at all must not break or blur the one line)."""
+    plain = isinstance(k, str) and k and k.isprintable() and "." not in k
+    return k if plain else _show(k)
+
+
 def check_tree(data, source: str):
     """`data` (parsed JSON/TOML), or `ParameterError` where it nests deeper than
     `MAX_DEPTH` or holds an integer beyond +-`MAX_INT` (named by its key path)."""
     stack = [(data, (), 0)]
     while stack:
         node, path, depth = stack.pop()
-        where = ".".join(map(str, path)) or "the top level"
+        where = ".".join(map(show_key, path)) or "the top level"
         if depth > MAX_DEPTH:
             raise ParameterError(
                 f"{source} is not allowed: nested deeper than {MAX_DEPTH} levels "
