@@ -71,7 +71,7 @@ def test_simulate_writes_npz_and_plot(tmp_path, capsys):
 
 
 def test_simulate_paper_case_reports_instability(capsys):
-    assert main(["simulate", "--t-end", "3"]) == 0
+    assert main(["simulate", "--t-end", "2"]) == 0
     assert "UNSTABLE: lost synchronism" in capsys.readouterr().out
 
 

@@ -86,7 +86,7 @@ def test_flat_file_loads_with_paper_defaults_and_a_note(tmp_path, capsys):
         "preset paper (the paper's defaults; controller by alpha)"
     ]
     out = tmp_path / "r.npz"
-    argv = ["simulate", "--gains", str(flat), "--t-end", "1", "--out", str(out)]
+    argv = ["simulate", "--gains", str(flat), "--t-end", "6", "--out", str(out)]
     assert main(argv) == 0
     err = _messages(capsys)
     assert len(err) == 1 and err[0].startswith("smibjax: note: --gains")
@@ -182,7 +182,7 @@ def test_round_trip_every_command_uses_the_context(
 
 def test_a_contradicting_flag_wins_with_one_warning(tuned, tmp_path, capsys):
     out = tmp_path / "sim.npz"
-    argv = ["simulate", "--gains", str(tuned), "--t-end", "1", "--out", str(out)]
+    argv = ["simulate", "--gains", str(tuned), "--t-end", "2", "--out", str(out)]
     assert main([*argv, "--adaptation", "oracle", "--set", "uf_max=3"]) == 0
     err = _messages(capsys)
     assert err == [
