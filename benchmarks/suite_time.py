@@ -33,7 +33,7 @@ import subprocess
 import sys
 import tempfile
 import time
-from collections import defaultdict
+from collections import Counter, defaultdict
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
@@ -109,8 +109,11 @@ def summarize(profiles: list[dict], start: float, top: int = 12) -> dict:
     processes, events = [], defaultdict(lambda: [0, 0.0])
     modules, programs = defaultdict(float), defaultdict(lambda: [0, 0.0])
     tests = []
+    misses = Counter()  # persistent-cache key -> misses over every process
     for prof in profiles:
         rows = prof["tests"]
+        misses.update(prof.get("misses_outside_tests", []))
+        misses.update(k for r in rows if len(r) > 7 for k in r[7])
         processes.append(
             {
                 "process": prof["process"],
@@ -154,9 +157,28 @@ def summarize(profiles: list[dict], start: float, top: int = 12) -> dict:
             {"function": name, "compiles": n, "compile_s": s}
             for name, (n, s) in by_program[:top]
         ],
+        "repeated_misses": repeated_misses(misses),
         # every test (the printed summary shows the longest): where a change would
         # save the most CPU is read from the whole list
         "tests": sorted(tests, key=lambda t: -t["wall_s"]),
+    }
+
+
+def repeated_misses(misses: Counter) -> dict:
+    """The persistent cache's misses in the test processes (`misses`: key -> count)
+    and those of a key missed more than once: the same program compiled by two
+    processes (both at once, before either wrote it) or again after a write that
+    failed. `extra_compiles` by function (the key's name before its hash)."""
+    extra = Counter()
+    for key, n in misses.items():
+        if n > 1:
+            extra[key.rsplit("-", 1)[0]] += n - 1
+    return {
+        "misses": sum(misses.values()),
+        "keys": len(misses),
+        "repeated_keys": sum(1 for n in misses.values() if n > 1),
+        "extra_compiles": sum(extra.values()),
+        "extra_by_function": dict(extra.most_common()),
     }
 
 
@@ -231,6 +253,12 @@ def report(res: dict) -> str:
             f"{k} {v['s']:.0f} s ({v['count']})" for k, v in s["events"].items()
         )
     )
+    rep = s.get("repeated_misses")
+    if rep:
+        lines.append(
+            f"  persistent-cache misses {rep['misses']} ({rep['keys']} programs); "
+            f"compiled again by another test process: {rep['extra_compiles']}"
+        )
     lines.append("  largest programs (XLA compile):")
     for p in s["programs"][:8]:
         lines.append(

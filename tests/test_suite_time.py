@@ -8,6 +8,7 @@ import json
 import os
 import subprocess
 import sys
+from collections import Counter
 from pathlib import Path
 
 import pytest
@@ -112,6 +113,9 @@ def test_profiler_plugin_records_each_test_and_its_compiles(tmp_path):
         **os.environ,
         "PYTHONPATH": os.pathsep.join([str(BENCH), os.environ.get("PYTHONPATH", "")]),
         "SMIBJAX_SUITE_PROFILE": str(out),
+        # a persistent cache of its own, every program kept: its misses are logged
+        "JAX_COMPILATION_CACHE_DIR": str(tmp_path / "cache"),
+        "JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS": "0",
     }
     env.pop("PYTEST_XDIST_WORKER", None)
     p = subprocess.run(
@@ -145,3 +149,26 @@ def test_profiler_plugin_records_each_test_and_its_compiles(tmp_path):
     assert prof["programs"]["jit(at_import)"][0] == 1
     assert prof["outside_tests"]["compile"][0] >= 1  # kept, not dropped at test start
     assert prof["cpu_s"] > 0
+    # each test's persistent-cache misses, by key: the at-import one is nobody's
+    jit_keys = rows["test_tiny.py::test_jit"][7]
+    assert [k.rsplit("-", 1)[0] for k in jit_keys].count("jit_tiny_program") == 1
+    assert all(len(k.rsplit("-", 1)[1]) == 64 for k in jit_keys)  # name-sha256
+    assert not any(k.startswith("jit_at_import-") for k in jit_keys)
+    assert rows["test_tiny.py::test_nothing"][7] == []
+    assert any(k.startswith("jit_at_import-") for k in prof["misses_outside_tests"])
+
+
+def test_repeated_misses_count_the_programs_compiled_twice(suite_time):
+    """A key missed n times is n - 1 compiles another process had already done (or
+    was doing); a key missed once is none."""
+    repeated_misses = suite_time.repeated_misses
+    a1, a2, b = "jit_a-" + "1" * 64, "jit_a-" + "2" * 64, "jit_b-" + "3" * 64
+    rep = repeated_misses(Counter({a1: 2, a2: 1, b: 3}))
+    assert rep == {
+        "misses": 6,
+        "keys": 3,
+        "repeated_keys": 2,
+        "extra_compiles": 3,
+        "extra_by_function": {"jit_b": 2, "jit_a": 1},
+    }
+    assert repeated_misses(Counter())["extra_compiles"] == 0
