@@ -31,7 +31,7 @@ TIMEOUT = 600  # s, per script
 # script -> tiny command-line arguments, in the order they run
 TINY = {
     # two devices only: the sharded path is the script's own (one device is every
-    # other test's engine); "1 2" costs 31 CPU-s cold, "2" 24 (2026-12-03)
+    # other test's engine); "1 2" costs 32 CPU-s cold, "2" 25 (2026-12-03)
     "throughput": [
         "--batches",
         "4",
