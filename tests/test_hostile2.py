@@ -149,6 +149,9 @@ _KEYS = [
 
 
 @settings(max_examples=60, deadline=None)
+# horizons whose sample count overflowed (found by this test at 1,500 examples)
+@example(key=("train", "t_end"), value=1.797693134862316e306)
+@example(key=("validation", "t_end"), value=4.49423283715579e305)
 @given(key=st.sampled_from(_KEYS), value=_VALUES)
 def test_tuner_config_any_value_is_checked_or_one_line(key, value):
     """Any value of any type at a key: accepted, or one ParameterError line."""
@@ -163,6 +166,24 @@ def test_tuner_config_any_value_is_checked_or_one_line(key, value):
         check_config(cfg)
     except ParameterError as e:
         assert "\n" not in str(e)
+
+
+@pytest.mark.parametrize(
+    "part, value", [("train", 1e306), ("validation", 1e306), ("validation", -1.0)]
+)
+def test_tuner_horizon_is_bounded_and_named(part, value):
+    """A horizon of more than a million 10 ms samples, or none, is refused under its
+    own key (before: an OverflowError from the memory plan for train.t_end, a
+    refusal that blamed validation.n for validation.t_end, and "t_end" with the
+    training value for a bad validation.t_end)."""
+    from tuning.config import check_config, load_config
+
+    cfg = load_config()
+    cfg[part]["t_end"] = value
+    with pytest.raises(ParameterError) as e:
+        check_config(cfg)
+    assert str(e.value).startswith(f"{part}.t_end = {value!r} is not allowed")
+    assert "(0, 10000] s" in str(e.value)
 
 
 # 6. Options silently dropped; 7. cct --out records what the CCTs were computed for.

@@ -224,6 +224,26 @@ BAD = [
         ),
         "case.skip_unsupported = 1 is not allowed: must be true or false",
     ),
+    # horizons beyond a million samples and step budgets beyond 1e8 (before: an
+    # OverflowError traceback after the output folder was written)
+    (
+        ("[train]\nt_end = 2.0", "[train]\nt_end = 1e306"),
+        "train.t_end = 1e+306 is not allowed: must be <= 20000 s (at most 1e+06 "
+        "samples of train.dt_save = 0.02 s a run)",
+    ),
+    (
+        ("every = 1\nt_end = 2.0", "every = 1\nt_end = 4e5"),
+        "validation.t_end = 400000.0 is not allowed: must be <= 20000 s",
+    ),
+    (
+        ("fault_bus = 2\nt_end = 2.0", "fault_bus = 2\nt_end = 1e300"),
+        "report.t_end = 1e+300 is not allowed",
+    ),
+    (
+        ("atol = 1e-11", "atol = 1e-11\nmax_steps = 1000000000000"),
+        "train.max_steps = 1000000000000 is not allowed: must be an integer in "
+        "[1, 1e+08]",
+    ),
 ]
 
 

@@ -293,7 +293,6 @@ def check_config(cfg: dict) -> None:
         t["phi_layer"],
         "must be a finite number >= 0",
     )
-    req(t["t_end"] > 0 and v["t_end"] > 0, "t_end", t["t_end"], "must be > 0")
     req(
         isinstance(t["checkpoints"], int) and t["checkpoints"] >= 0,
         "train.checkpoints",
@@ -406,7 +405,7 @@ def check_config(cfg: dict) -> None:
 
 def _check_meaning(cfg: dict) -> None:
     """The settings that type-check but make the task meaningless."""
-    from smibjax._validate import require_integer, require_memory
+    from smibjax._validate import MAX_SAMPLES, require_integer, require_memory
 
     def req(ok, key, value, allowed):
         if not ok:
@@ -420,6 +419,18 @@ def _check_meaning(cfg: dict) -> None:
     require_integer("batch", cfg["batch"], 1, 10**9)
     require_integer("validation.n", cfg["validation"]["n"], 1, 10**9)
     require_integer("train.max_steps", cfg["train"]["max_steps"], 1, 10**8)
+    # the runs sample every 10 ms: a horizon of more than MAX_SAMPLES samples is
+    # refused here, before its sample count overflows the memory plan below
+    t_end_max = MAX_SAMPLES * 0.01
+    for part in ("train", "validation"):
+        t_end = cfg[part]["t_end"]
+        req(
+            0 < t_end <= t_end_max,
+            f"{part}.t_end",
+            t_end,
+            f"must be in (0, {t_end_max:g}] s (at most {MAX_SAMPLES:g} samples of "
+            "10 ms a run)",
+        )
     ranges = {}
     for k, v in cfg["scenarios"].items():
         if k == "D" and v == []:  # the plant's own damping, not drawn

@@ -28,6 +28,7 @@ import math
 from pathlib import Path
 
 from smibjax import ParameterError
+from smibjax._validate import MAX_SAMPLES, MAX_STEPS
 
 __all__ = ["GRID_DEFAULTS", "is_grid_config", "load_grid_config", "check_grid_config"]
 
@@ -225,10 +226,10 @@ def check_grid_config(cfg: dict) -> None:
     for key in ("t_end", "dt_save", "rtol", "atol"):
         _req(_num(t[key]) and t[key] > 0, f"train.{key}", t[key], "must be > 0")
     _req(
-        isinstance(t["max_steps"], int) and t["max_steps"] >= 1,
+        isinstance(t["max_steps"], int) and 1 <= t["max_steps"] <= MAX_STEPS,
         "train.max_steps",
         t["max_steps"],
-        "must be an integer >= 1",
+        f"must be an integer in [1, {MAX_STEPS:g}]",
     )
     t_last = s["t_fault"][1] + s["clear_after"][1] + (s["reclose"] or [0, 0])[1]
     v = cfg["validation"]
@@ -298,3 +299,17 @@ def check_grid_config(cfg: dict) -> None:
         r["t_end"],
         "must be after the reference fault's clearing (0.5 s + clear_after)",
     )
+    # every run samples at train.dt_save: at most MAX_SAMPLES samples a run
+    dt = t["dt_save"]
+    for key, val in (
+        ("train.t_end", t["t_end"]),
+        ("validation.t_end", v["t_end"]),
+        ("report.t_end", r["t_end"]),
+    ):
+        _req(
+            _num(val) and val / dt <= MAX_SAMPLES,
+            key,
+            val,
+            f"must be <= {MAX_SAMPLES * dt:g} s (at most {MAX_SAMPLES:g} samples of "
+            f"train.dt_save = {dt:g} s a run)",
+        )
