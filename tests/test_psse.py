@@ -393,6 +393,11 @@ RAW_ERRORS = [
         "{f}:1: case identification field REV: version 34 is not supported "
         "(this reader reads PSS/E 32 and 33 raw files)",
     ),
+    (  # a version written as a huge number: shown short, not as 309 digits
+        "0, 100.0, 1e308, 0, 1, 60.0\nT1\nT2\n",
+        "{f}:1: case identification field REV: version 1e+308 is not supported "
+        "(this reader reads PSS/E 32 and 33 raw files)",
+    ),
     (
         "0, abc, 33\n",
         "{f}:1: case identification field SBASE: 'abc' is not a number",

@@ -381,7 +381,7 @@ def read_raw(path) -> RawData:
     )
     if head["REV"] not in _VERSIONS:
         raise PsseError(
-            f"{where}: case identification field REV: version {head['REV']} is not "
+            f"{where}: case identification field REV: version {head['REV']:.6g} is not "
             "supported (this reader reads PSS/E 32 and 33 raw files)"
         )
     if head["SBASE"] <= 0:
