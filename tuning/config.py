@@ -419,9 +419,11 @@ def _check_meaning(cfg: dict) -> None:
     require_integer("batch", cfg["batch"], 1, 10**9)
     require_integer("validation.n", cfg["validation"]["n"], 1, 10**9)
     require_integer("train.max_steps", cfg["train"]["max_steps"], 1, 10**8)
-    # the runs sample every 10 ms: a horizon of more than MAX_SAMPLES samples is
-    # refused here, before its sample count overflows the memory plan below
-    t_end_max = MAX_SAMPLES * 0.01
+    # the runs sample every 10 ms (simulate's default): a horizon of more than
+    # MAX_SAMPLES samples is refused here, before its sample count overflows the
+    # memory plan below
+    dt_save = 0.01
+    t_end_max = MAX_SAMPLES * dt_save
     for part in ("train", "validation"):
         t_end = cfg[part]["t_end"]
         req(
@@ -518,7 +520,7 @@ def _check_meaning(cfg: dict) -> None:
         proj,
         "must be [] or [[lo1, hi1], [lo2, hi2]] of numbers",
     )
-    samples = round(cfg["train"]["t_end"] / 0.01) + 1
+    samples = round(cfg["train"]["t_end"] / dt_save) + 1
     require_memory(
         f"batch = {cfg['batch']}",
         cfg["batch"],
@@ -528,6 +530,6 @@ def _check_meaning(cfg: dict) -> None:
     require_memory(
         f"validation.n = {cfg['validation']['n']}",
         cfg["validation"]["n"],
-        round(cfg["validation"]["t_end"] / 0.01) + 1,
+        round(cfg["validation"]["t_end"] / dt_save) + 1,
         "lower validation.n",
     )

@@ -11,7 +11,7 @@ from pathlib import Path
 
 from ._gainsfile import GainsFile, check_complete, is_schema_table, legacy, validate
 from ._parameters import ParameterError
-from ._validate import MAX_DEPTH, _show, check_tree, require_real, show_key
+from ._validate import MAX_DEPTH, check_tree, require_real, show_key, show_value
 from .controllers.synergetic import GAIN_NAMES
 
 try:  # Python >= 3.11
@@ -77,7 +77,7 @@ def read_table(path: str | os.PathLike) -> dict[str, float]:
     for k, v in data.items():
         if isinstance(v, bool) or not isinstance(v, (int, float)):
             raise ParameterError(
-                f"{show_key(k)} = {_show(v)} in {str(p)!r} is not allowed: "
+                f"{show_key(k)} = {show_value(v)} in {str(p)!r} is not allowed: "
                 "must be a number"
             )
         out[str(k)] = (

@@ -139,7 +139,7 @@ MAX_INT = 2**63 - 1
 conversions)."""
 
 
-def _show(v) -> str:
+def show_value(v) -> str:
     """`v` for an error line: short (a 400-digit integer is summarized)."""
     if isinstance(v, int) and not isinstance(v, bool) and abs(v) > MAX_INT:
         return f"<an integer of {len(str(abs(v)))} digits>"
@@ -151,7 +151,9 @@ def require_integer(name: str, v, lo: int | None = 1, hi: int | None = MAX_COUNT
     """`v` as an int, or `ParameterError` unless it is an integer (not a bool, not a
     float, even an integral one: a seed of 1.5 is not 1) within [lo, hi]."""
     if isinstance(v, bool) or not isinstance(v, numbers.Integral):
-        raise ParameterError(f"{name} = {_show(v)} is not allowed: must be an integer")
+        raise ParameterError(
+            f"{name} = {show_value(v)} is not allowed: must be an integer"
+        )
     v = int(v)
     if (lo is not None and v < lo) or (hi is not None and v > hi):
         rng = (
@@ -159,7 +161,7 @@ def require_integer(name: str, v, lo: int | None = 1, hi: int | None = MAX_COUNT
             if lo is not None and hi is not None
             else (f">= {lo}" if lo is not None else f"<= {hi}")
         )
-        raise ParameterError(f"{name} = {_show(v)} is not allowed: must be {rng}")
+        raise ParameterError(f"{name} = {show_value(v)} is not allowed: must be {rng}")
     return v
 
 
@@ -175,7 +177,9 @@ def require_real(
     """`v` as a float, or `ParameterError` unless it is a finite number (not a bool,
     not a string) within the bounds (`lo_open`/`hi_open`: the bound excluded)."""
     if isinstance(v, bool) or not isinstance(v, numbers.Real):
-        raise ParameterError(f"{name} = {_show(v)} is not allowed: must be a number")
+        raise ParameterError(
+            f"{name} = {show_value(v)} is not allowed: must be a number"
+        )
     try:
         f = float(v)
     except OverflowError:
@@ -189,7 +193,7 @@ def require_real(
         if hi is not None:
             parts.append(f"{'<' if hi_open else '<='} {hi:g}")
         what = "a finite number" + (" " + " and ".join(parts) if parts else "")
-        raise ParameterError(f"{name} = {_show(v)} is not allowed: must be {what}")
+        raise ParameterError(f"{name} = {show_value(v)} is not allowed: must be {what}")
     return f
 
 
@@ -202,7 +206,9 @@ def require_count(name: str, v) -> None:
 def require_positive(name: str, v) -> None:
     """Raise `ParameterError` unless the number `v` is finite and > 0 (not a bool)."""
     if isinstance(v, bool) or not isinstance(v, numbers.Real):
-        raise ParameterError(f"{name} = {_show(v)} is not allowed: must be a number")
+        raise ParameterError(
+            f"{name} = {show_value(v)} is not allowed: must be a number"
+        )
     if not (np.isfinite(v) and v > 0):
         raise ParameterError(f"{name} = {v:g} is not allowed: must be > 0")
 
@@ -260,7 +266,7 @@ def show_key(k) -> str:
     printable text, else quoted with its escapes (a key holding a newline or nothing
     at all must not break or blur the one line)."""
     plain = isinstance(k, str) and k and k.isprintable() and "." not in k
-    return k if plain else _show(k)
+    return k if plain else show_value(k)
 
 
 def check_tree(data, source: str):
@@ -282,7 +288,7 @@ def check_tree(data, source: str):
         elif isinstance(node, int) and not isinstance(node, bool):
             if abs(node) > MAX_INT:
                 raise ParameterError(
-                    f"{where} = {_show(node)} in {source} is not allowed: must be "
+                    f"{where} = {show_value(node)} in {source} is not allowed: must be "
                     f"an integer within +-{MAX_INT} (2**63 - 1)"
                 )
     return data
