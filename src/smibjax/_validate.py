@@ -13,10 +13,7 @@ import numbers
 import jax
 import numpy as np
 
-
-class ParameterError(ValueError):
-    """A parameter value outside its allowed range. The message is one line that names
-    the value and what is allowed."""
+from ._errors import ParameterError as ParameterError  # the one home: _errors.py
 
 
 def is_concrete(*xs) -> bool:

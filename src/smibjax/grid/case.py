@@ -18,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .._errors import ParameterError
 from .loop import Case
 
 __all__ = ["BUILTIN", "load_case", "build_case", "case_files", "SUPPORTED"]
@@ -43,7 +44,7 @@ SVCS = ("CSVGN1",)
 SUPPORTED = MACHINES + EXCITERS + STABILIZERS + GOVERNORS + SVCS
 
 
-class CaseError(ValueError):
+class CaseError(ParameterError):
     """A case that cannot be built (one line: what and where)."""
 
 

@@ -14,6 +14,7 @@ import math
 import jax.numpy as jnp
 import numpy as np
 
+from .._errors import ParameterError
 from .events import BusFault
 from .loop import Case, Operating
 from .simulate import simulate_batch
@@ -37,7 +38,7 @@ def critical_clearing_times_grid(
     shortest duration tried}, "tol", "t_fault", "t_max", "exhausted": buses where a
     run spent its step budget (counted as unstable)}."""
     if not (tol > 0 and t_max > tol and t_fault >= 0 and t_end > t_fault + t_max):
-        raise ValueError(
+        raise ParameterError(
             f"cct: need tol > 0 ({tol}), t_max > tol ({t_max}), t_fault >= 0 "
             f"({t_fault}) and t_end > t_fault + t_max ({t_end})"
         )

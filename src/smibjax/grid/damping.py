@@ -53,6 +53,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .._errors import ParameterError
 from .loop import Case, Operating
 from .modes import damping_ratios, linearize, modes, state_matrix
 from .operating import operating_point_traced
@@ -119,14 +120,14 @@ def damping_loss(
     concrete: compute it once outside `jax.grad`). `reduce`: "mean" or "max" over the
     operating points (max: the gradient of the worst point)."""
     if reduce not in ("mean", "max"):
-        raise ValueError(f"reduce = {reduce!r} is not allowed: use 'mean' or 'max'")
+        raise ParameterError(f"reduce = {reduce!r} is not allowed: use 'mean' or 'max'")
     ops = (op,) if op is not None else None
     if reference is None:
         reference = reference_modes(case, load_factors, ops)
     if ops is None:
         ops = tuple(operating_point_traced(case, lf)[0] for lf in load_factors)
     if len(reference) != len(ops):
-        raise ValueError(
+        raise ParameterError(
             f"reference has {len(reference)} operating points, not {len(ops)}"
         )
     terms = []

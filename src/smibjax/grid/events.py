@@ -19,6 +19,8 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float, Int
 
+from .._errors import ParameterError
+
 __all__ = [
     "BusFault",
     "LineFault",
@@ -126,7 +128,7 @@ def check_order(events) -> None:
     if ts.size and (
         np.any(np.diff(ts) < 0) or ts[0] < 0 or not np.all(np.isfinite(ts))
     ):
-        raise ValueError(
+        raise ParameterError(
             f"event times {ts.tolist()} must be finite, >= 0 and in the order the "
             "events are listed"
         )

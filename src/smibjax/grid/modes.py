@@ -38,6 +38,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .._errors import ParameterError
 from .loop import Case, Operating, evaluate, gen_names, state_labels
 from .network import stage_configs, stage_matrices
 
@@ -260,7 +261,7 @@ def check_equilibrium(case: Case, op: Operating, tol: float = 1e-6) -> None:
     if dy.size and dy.max() > tol:
         k = int(np.argmax(dy))
         model, dev, st = state_labels(case)[k]
-        raise ValueError(
+        raise ParameterError(
             f"the operating point is not an equilibrium: d{st}/dt = {dy[k]:.3g} at "
             f"{model} {dev} (more than {tol:g})"
         )

@@ -10,6 +10,7 @@ import equinox as eqx
 import jax
 import numpy as np
 
+from .._errors import ParameterError
 from .loop import Case, Operating, initialize
 from .powerflow import (
     PowerFlowResult,
@@ -76,7 +77,7 @@ def check_islanding(case: Case, events) -> None:
                     lone = [
                         int(nums[i]) for i in range(len(comp)) if comp[i] != comp[0]
                     ]
-                    raise ValueError(
+                    raise ParameterError(
                         f"tripping branch {a}-{b} islands the system (buses "
                         f"{lone[:8]}{' ...' if len(lone) > 8 else ''} separate)"
                     )

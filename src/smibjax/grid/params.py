@@ -16,6 +16,7 @@ import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 
+from .._errors import ParameterError
 from .loop import Case, gen_names
 
 __all__ = ["ParamError", "parse_name", "get_param", "set_params", "tunable_names"]
@@ -23,7 +24,7 @@ __all__ = ["ParamError", "parse_name", "get_param", "set_params", "tunable_names
 _NAME = re.compile(r"^([A-Z0-9_]+)(?:\[([^\]]+)\])?\.([A-Za-z0-9_]+)$")
 
 
-class ParamError(ValueError):
+class ParamError(ParameterError):
     """A parameter name that does not exist in the case (one line)."""
 
 

@@ -44,6 +44,7 @@ import numpy as np
 import optimistix as optx
 from jaxtyping import Array, Bool, Float, Int
 
+from .._errors import ParameterError
 from .system import PQ, PV, SLACK, System
 from .ybus import ybus
 
@@ -60,7 +61,7 @@ LOW_V = 0.5  # pu: below it a solution from the case's voltages is tried again f
 Start = Literal["case", "flat"]
 
 
-class PowerFlowError(ValueError):
+class PowerFlowError(ParameterError):
     """The power flow did not converge (the message names the largest mismatch)."""
 
 
@@ -219,7 +220,7 @@ def power_flow(
     and network parameters; jittable and vmappable (nothing here depends on the
     values of the bus types)."""
     if start not in ("case", "flat"):
-        raise ValueError(f"power flow: start {start!r} is not 'case' or 'flat'")
+        raise ParameterError(f"power flow: start {start!r} is not 'case' or 'flat'")
     # one compile per shape, whether the leaves are NumPy or JAX arrays
     system = jax.tree.map(jnp.asarray, system)
     flat = jnp.asarray(start == "flat")
@@ -270,24 +271,24 @@ def _check(system: System) -> None:
     bad = np.flatnonzero(~np.isin(kind, (PQ, PV, SLACK)))
     if bad.size:
         i = bad[0]
-        raise ValueError(
+        raise ParameterError(
             f"power flow: bus {int(b.number[i])} has type {int(kind[i])}; "
             "the power flow takes 1 (PQ), 2 (PV) and 3 (slack)"
         )
     if not np.any(kind == SLACK):
-        raise ValueError("power flow: the system has no slack bus (type 3)")
+        raise ParameterError("power flow: the system has no slack bus (type 3)")
     on = np.asarray(br.status) > 0
     zero = np.flatnonzero(on & (np.asarray(br.r) == 0) & (np.asarray(br.x) == 0))
     if zero.size:
         i = zero[0]
-        raise ValueError(
+        raise ParameterError(
             f"power flow: branch {int(b.number[br.fr[i]])}-{int(b.number[br.to[i]])} "
             "has zero impedance (r = x = 0)"
         )
     tap = np.asarray(br.tap)
     if np.any(~np.isfinite(tap) | (tap <= 0)):
         i = int(np.flatnonzero(~np.isfinite(tap) | (tap <= 0))[0])
-        raise ValueError(
+        raise ParameterError(
             f"power flow: branch {int(b.number[br.fr[i]])}-{int(b.number[br.to[i]])} "
             f"has tap {tap[i]}; it must be positive"
         )

@@ -22,6 +22,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .._errors import ParameterError
 from .system import Branches, Buses, Generators, Loads, Shunts, System
 
 __all__ = [
@@ -39,7 +40,7 @@ __all__ = [
 ZERO_Z = 1e-4  # pu: the impedance of a tie (a star leg of zero impedance)
 
 
-class PsseError(ValueError):
+class PsseError(ParameterError):
     """A PSS/E file this reader refuses; the message is one line,
     `file:line: record field NAME: what is wrong`."""
 

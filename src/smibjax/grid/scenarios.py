@@ -18,6 +18,7 @@ import dataclasses
 import jax.numpy as jnp
 import numpy as np
 
+from .._errors import ParameterError
 from .events import BranchClose, BranchTrip, BusFault, LineFault
 from .system import System
 
@@ -38,20 +39,20 @@ class FaultDistribution:
 
     def __post_init__(self):
         if self.kind not in ("bus", "line"):
-            raise ValueError(
+            raise ParameterError(
                 f"fault kind {self.kind!r} is not allowed: 'bus' or 'line'"
             )
         for name in ("t_fault", "clear_after", "location", "fault_x", "fault_r"):
             lo, hi = getattr(self, name)
             if not (np.isfinite(lo) and np.isfinite(hi) and lo <= hi):
-                raise ValueError(f"{name} = {[lo, hi]} must be a range lo <= hi")
+                raise ParameterError(f"{name} = {[lo, hi]} must be a range lo <= hi")
         if self.t_fault[0] < 0 or self.clear_after[0] <= 0:
-            raise ValueError(
+            raise ParameterError(
                 f"t_fault = {list(self.t_fault)} must be >= 0 and clear_after = "
                 f"{list(self.clear_after)} > 0"
             )
         if not (0 < self.location[0] and self.location[1] < 1):
-            raise ValueError(f"location = {list(self.location)} must lie in (0, 1)")
+            raise ParameterError(f"location = {list(self.location)} must lie in (0, 1)")
 
     def t_last(self) -> float:
         """The latest switch time the distribution can draw (s)."""
@@ -80,7 +81,7 @@ def branch_positions(system: System, branches) -> np.ndarray:
     for b in branches:
         if isinstance(b, int | np.integer):
             if not 0 <= b < len(fr):
-                raise ValueError(
+                raise ParameterError(
                     f"branch position {b} does not exist (0..{len(fr) - 1})"
                 )
             out.append(int(b))
@@ -94,7 +95,9 @@ def branch_positions(system: System, branches) -> np.ndarray:
             and (ckt is None or not br.ckt or br.ckt[k].strip() == ckt)
         ]
         if not hit:
-            raise ValueError(f"branch {a}-{c}{' ' + ckt if ckt else ''} does not exist")
+            raise ParameterError(
+                f"branch {a}-{c}{' ' + ckt if ckt else ''} does not exist"
+            )
         out.append(hit[0])
     return np.array(out, dtype=np.int64)
 

@@ -15,6 +15,8 @@ import equinox as eqx
 import numpy as np
 from jaxtyping import Array, Complex, Float, Int
 
+from .._errors import ParameterError
+
 __all__ = [
     "PQ",
     "PV",
@@ -145,5 +147,5 @@ class System(eqx.Module):
         """Position of the bus with PSS/E number `number`; ValueError if none."""
         hits = np.flatnonzero(np.asarray(self.buses.number) == int(number))
         if hits.size == 0:
-            raise ValueError(f"bus {number} is not in the system")
+            raise ParameterError(f"bus {number} is not in the system")
         return int(hits[0])

@@ -9,6 +9,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from ..._errors import ParameterError
+
 __all__ = ["CASES_DIR", "case_file", "case_files"]
 
 CASES_DIR = Path(__file__).resolve().parent
@@ -24,7 +26,7 @@ def case_file(name: str) -> Path:
     """The path of the built-in case file `name` (e.g. "kundur.raw"); an unknown name
     raises ValueError naming it and the known ones."""
     if name not in case_files():
-        raise ValueError(
+        raise ParameterError(
             f"case file {name!r} is not built in: must be one of {case_files()}"
         )
     return CASES_DIR / name

@@ -51,6 +51,7 @@ import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 
+from ..._errors import ParameterError
 from ..psse import DYR_MODELS
 from ._blocks import (
     build_group,
@@ -97,7 +98,7 @@ def saturation_coefficients(E1, SE1, E2, SE2, kind="quadratic"):
         )
         A = jnp.where(on, SE1 * jnp.exp(-B * E1), 0.0)
         return A, B
-    raise ValueError(f"saturation = {kind!r}: must be 'quadratic' or 'exponential'")
+    raise ParameterError(f"saturation = {kind!r}: must be 'quadratic' or 'exponential'")
 
 
 class _DCExciter(AbstractController):
@@ -130,7 +131,7 @@ class _DCExciter(AbstractController):
 
     def __check_init__(self):
         if self.saturation not in ("quadratic", "exponential"):
-            raise ValueError(
+            raise ParameterError(
                 f"{type(self).__name__}.saturation = {self.saturation!r}: must be "
                 "'quadratic' or 'exponential'"
             )
