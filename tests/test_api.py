@@ -106,3 +106,32 @@ def test_the_old_simulate_keywords_are_a_deprecated_shim_with_the_same_run():
     assert (old.delta == new.delta).all() and int(old.num_steps) == int(new.num_steps)
     with pytest.raises(TypeError, match="unexpected keyword argument 'tend'"):
         sj.simulate(g, tend=1.0)
+
+
+def test_the_grid_face_resolves_each_name_and_loads_lazily():
+    """`smibjax.grid`'s curated names (issue 44): each is its module's object, and
+    importing the face loads no JAX."""
+    import smibjax.grid as sg
+
+    tree = ast.parse((SRC / "grid" / "__init__.py").read_text(encoding="utf-8"))
+    block = next(n for n in tree.body if isinstance(n, ast.If))
+    pairs = [(a.asname, n.module) for n in block.body for a in n.names]
+    assert sorted(a for a, _ in pairs) == sg.__all__
+    for name in ("load_case", "simulate_case", "BusFault", "ParamError"):
+        assert name in sg.__all__
+    for name, module in pairs:
+        assert getattr(sg, name) is getattr(sys.modules[f"smibjax.grid.{module}"], name)
+    assert issubclass(sg.PsseError, sj.ParameterError)
+    with pytest.raises(AttributeError):
+        sg.no_such_name  # noqa: B018
+    code = (
+        "import sys, smibjax.grid as sg; print('jax' in sys.modules, len(sg.__all__))"
+    )
+    out = subprocess.run(
+        [sys.executable, "-c", code],
+        capture_output=True,
+        text=True,
+        check=True,
+        env={"PYTHONPATH": str(ROOT / "src"), "PATH": ""},
+    ).stdout.split()
+    assert out == ["False", str(len(sg.__all__))]

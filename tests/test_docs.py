@@ -142,7 +142,11 @@ def _public_names(module: str) -> set[str]:
         if isinstance(node, ast.Assign) and any(
             isinstance(t, ast.Name) and t.id == "__all__" for t in node.targets
         ):
-            return set(ast.literal_eval(node.value))
+            try:
+                return set(ast.literal_eval(node.value))
+            except ValueError:  # a lazy face: `__all__ = sorted(_EXPORTS)`
+                block = next(n for n in tree.body if isinstance(n, ast.If))
+                return {a.asname for n in block.body for a in n.names}
     raise AssertionError(f"{module} has no __all__")
 
 

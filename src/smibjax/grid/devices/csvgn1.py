@@ -28,7 +28,7 @@ and u, an external command (pu susceptance on MBASE, capacitive positive: it
 lowers the reactor's admittance), is added to the regulator's output before the
 VMIN/VMAX limiter (PSS/E's VOTHSG enters at the voltage error instead).
 
-With K = 0 and T1 = T2 = T3 = T4 = 0 this is the paper's SVC (MODEL.md section 1)
+With K = 0 and T1 = T2 = T3 = T4 = 0 this is the paper's SVC (docs/model.md section 1)
 on the device base: with Bm = CBASE/MBASE - Y, T5 dBm/dt = -(Bm - Bm0) + u inside
 the limits, and with VMAX = Y0 - u_min, VMIN = Y0 - u_max the limiter is exactly
 the paper's clip of u to [u_min, u_max] (`DirectSVC`): T5 dBm/dt = -(Bm - Bm0) +

@@ -7,9 +7,9 @@ outside (the paper's synergetic law, open-loop studies, a controller under test)
 
 with Efd0 the operating point's field voltage, held from `init` as `ref`, and
 Efd_cmd the external command (pu, the input named "Efd_cmd"; 0 gives the `none`
-baseline of MODEL.md section 2). The clip is a plain output limit (default: none).
+baseline of docs/model.md section 2). The clip is a plain output limit (default: none).
 
-`DirectSVC` (a shunt device at bus positions `bus`): the paper's SVC (MODEL.md
+`DirectSVC` (a shunt device at bus positions `bus`): the paper's SVC (docs/model.md
 section 1),
 
     TR dB/dt = -(B - B0) + clip(u, UMIN, UMAX)
@@ -17,7 +17,7 @@ section 1),
 with B the net susceptance (pu on the system base, capacitive positive), B0 its
 operating-point value (from the power flow's reactive injection q = B0 |V|^2, held
 as `ref`) and u the external command (pu, system base). The limits are on the
-command, as MODEL.md's u_r in [ur_min, ur_max], which keeps B - B0 in the same
+command, as docs/model.md's u_r in [ur_min, ur_max], which keeps B - B0 in the same
 range. `CSVGN1` with K = 0 reduces to this.
 """
 

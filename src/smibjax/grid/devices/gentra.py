@@ -24,7 +24,7 @@ it as an extra current injection iterated with the network solution, which the
 machine interface (`norton(x)` before the network solve) has no place for. This model
 refuses Xq != X'd with one line rather than approximate it.
 
-Against the paper (MODEL.md section 1, T0 = T'do): with Xq = X'd, Ra = 0, Se = 0 and
+Against the paper (docs/model.md section 1, T0 = T'do): with Xq = X'd, Ra = 0, Se = 0 and
 the terminal tied to an infinite bus V through a reactance X, Id = (e1q - V cos delta)
 / Xs with Xs = X'd + X, so T'do d e1q/dt = Efd - (Xd + X)/Xs e1q + (Xd - X'd)/Xs V cos
 delta: the paper's dE/dt with Xds = Xd + X and u_f = Efd (tests/test_machines.py).
