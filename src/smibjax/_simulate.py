@@ -56,7 +56,7 @@ from ._parameters import (
     Plant,
 )
 from ._plant import apply_limits, equilibrium_state, sincos, terminal_voltage
-from ._stepping import RigidSteps
+from ._solve import METHOD_CLASSES, adaptive_solve
 from ._validate import require_x64
 from .controllers import AbstractController, Gains
 
@@ -122,7 +122,7 @@ class _RmsDynamic(eqx.Module):
         return jnp.sqrt(jnp.mean(y[: self.n] ** 2))
 
 
-_SOLVERS = {"tsit5": dfx.Tsit5, "dopri5": dfx.Dopri5, "dopri8": dfx.Dopri8}
+_SOLVERS = METHOD_CLASSES  # the one table of methods: _solve.py
 
 
 def _solve_adaptive(loop, y0, ts, jumps, solver: SolverOptions):
@@ -131,31 +131,15 @@ def _solve_adaptive(loop, y0, ts, jumps, solver: SolverOptions):
     leaving the domain. Returns (samples, held state, lost_sync, budget exhausted,
     t_stop, accepted steps, rejected steps)."""
     n = ts.shape[0]
-    rtol, atol = float(solver.rtol), float(solver.atol)
-    checkpoints = solver.checkpoints
-    controller = dfx.ClipStepSizeController(
-        RigidSteps(
-            dfx.PIDController(rtol=rtol, atol=atol, norm=_RmsDynamic(loop.n_dynamic))
-        ),
-        jump_ts=jumps,
-    )
-    event = dfx.Event(cond_fn=lambda t, y, args, **kw: ~healthy(t, y, args))
-    sol = dfx.diffeqsolve(
-        dfx.ODETerm(closed_loop_vector_field),
-        _SOLVERS[solver.method](),
-        t0=0.0,
-        t1=ts[-1],
-        dt0=None,
-        y0=y0,
+    sol = adaptive_solve(
+        closed_loop_vector_field,
+        y0,
+        ts,
+        jumps,
+        solver,
+        lambda t, y, args, **kw: ~healthy(t, y, args),
         args=loop,
-        saveat=dfx.SaveAt(ts=ts, t1=True),
-        stepsize_controller=controller,
-        event=event,
-        max_steps=int(solver.max_steps),
-        adjoint=dfx.RecursiveCheckpointAdjoint(
-            checkpoints=None if checkpoints is None else int(checkpoints)
-        ),
-        throw=False,
+        norm=_RmsDynamic(loop.n_dynamic),
     )
     # SaveAt(ts, t1) stores the grid points reached, then the final state (t_end, or the
     # time the run stopped on loss of synchronism), then inf padding. After a stop, the

@@ -1,7 +1,10 @@
 """`simulate_case`: one run of a multi-machine case through a list of events.
 
-Tsit5 with a PID step-size controller (rtol 1e-6, atol 1e-8 by default, as the SMIB);
-the switch times are `jump_ts`, so no step crosses a change of the network. A run
+The engine's one adaptive solve path (`smibjax._solve.adaptive_solve`, as the SMIB's):
+Tsit5 with a PID step-size controller (rtol 1e-6, atol 1e-8 by default), steps that end
+exactly on the switch times (no step crosses a change of the network) and whose lengths
+carry no gradient (`RigidSteps`: derivatives with respect to clearing and reclosing
+times stay right after the switch). A run
 that loses synchronism (a machine's angle more than pi from the centre of inertia;
 from the infinite bus where the case has one) stops there: `stable` is False and
 `t_unstable` says when; samples after it are NaN. Pure and jittable; vmap over events
@@ -17,6 +20,8 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Bool, Float
 
+from .._options import SolverOptions
+from .._solve import adaptive_solve
 from .events import check_order, switch_times
 from .loop import Case, Operating, evaluate, vector_field
 from .network import stage_configs, stage_matrices
@@ -94,12 +99,16 @@ def simulate_case(
     max_steps: int = 100_000,
     dt0: float = 1e-3,
     fixed_dt: float | None = None,
+    solver: SolverOptions | None = None,
 ) -> GridTrajectory:
     """Integrate `case` from its operating point `op` (`operating_point`) through
-    `events` to `t_end` (s), saving every `dt_save` s: Tsit5 with error control
-    (`rtol`, `atol`), or, with `fixed_dt` (s), explicit Euler at that constant step
-    and no error control (the prior art's fixed-step integration, for comparison;
-    switching times should then be multiples of `fixed_dt`)."""
+    `events` to `t_end` (s), saving every `dt_save` s: the engine's adaptive solve
+    (`smibjax._solve.adaptive_solve`: Tsit5 with PID error control, steps ending on
+    every switch time, step lengths rigid under differentiation), with the options
+    `solver` (a `SolverOptions`; None: one from `rtol`, `atol` and `max_steps`), or,
+    with `fixed_dt` (s), explicit Euler at that constant step and no error control
+    (the prior art's fixed-step integration, for comparison; switching times should
+    then be multiples of `fixed_dt`)."""
     check_order(events)
     cfgs = stage_configs(op.grid, events)
     mats = stage_matrices(op.grid, cfgs)
@@ -116,25 +125,23 @@ def simulate_case(
         return spread > jnp.pi
 
     if fixed_dt is None:
-        solver = dfx.Tsit5()
-        ctrl = dfx.PIDController(
-            rtol=rtol, atol=atol, jump_ts=t_sw if t_sw.shape[0] else None
-        )
+        if solver is None:
+            solver = SolverOptions(rtol=rtol, atol=atol, max_steps=max_steps)
+        sol = adaptive_solve(f, op.y0, ts, t_sw, solver, lost, dt0=dt0)
     else:
-        solver, ctrl, dt0 = dfx.Euler(), dfx.ConstantStepSize(), float(fixed_dt)
-    sol = dfx.diffeqsolve(
-        dfx.ODETerm(f),
-        solver,
-        t0=0.0,
-        t1=t_end,
-        dt0=dt0,
-        y0=op.y0,
-        saveat=dfx.SaveAt(ts=ts, t1=True),
-        stepsize_controller=ctrl,
-        event=dfx.Event(lost),
-        max_steps=max_steps,
-        throw=False,
-    )
+        sol = dfx.diffeqsolve(
+            dfx.ODETerm(f),
+            dfx.Euler(),
+            t0=0.0,
+            t1=t_end,
+            dt0=float(fixed_dt),
+            y0=op.y0,
+            saveat=dfx.SaveAt(ts=ts, t1=True),
+            stepsize_controller=dfx.ConstantStepSize(),
+            event=dfx.Event(lost),
+            max_steps=max_steps,
+            throw=False,
+        )
     # SaveAt(ts, t1): the grid samples reached, the final state (t_end or the time
     # synchronism was lost), then inf padding
     k = jnp.sum(jnp.isfinite(sol.ts)) - 1
