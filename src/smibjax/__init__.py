@@ -21,10 +21,9 @@ command line sets up (host devices, the compilation cache):
 
 from __future__ import annotations
 
-import ast
-import importlib
-from pathlib import Path
 from typing import TYPE_CHECKING
+
+from ._face import lazy_face
 
 __version__ = "0.1.0"
 
@@ -83,31 +82,7 @@ if TYPE_CHECKING:  # the public names; loaded on first use (`__getattr__`)
     from .controllers.synergetic import Gains as Gains
 
 
-def _exports() -> dict[str, str]:
-    """public name -> defining module, read from the `TYPE_CHECKING` block above
-    (one list of the public names, for type checkers, documentation tools and this
-    lazy loader alike)."""
-    tree = ast.parse(Path(__file__).read_text(encoding="utf-8"))
-    block = next(n for n in tree.body if isinstance(n, ast.If))
-    return {a.asname: n.module for n in block.body for a in n.names}
-
-
-_EXPORTS = _exports()
+_EXPORTS, __getattr__, __dir__ = lazy_face(
+    __file__, __name__, ("controllers", "cli", "grid")
+)
 __all__ = sorted(_EXPORTS)
-
-
-def __getattr__(name: str):
-    """Load a public name on first use (PEP 562); modules load only then, so
-    `import smibjax` imports neither JAX nor equinox."""
-    if name in _EXPORTS:
-        module = importlib.import_module(f".{_EXPORTS[name]}", __name__)
-        value = getattr(module, name)
-        globals()[name] = value
-        return value
-    if name in ("controllers", "cli", "grid"):
-        return importlib.import_module(f".{name}", __name__)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-
-
-def __dir__() -> list[str]:
-    return sorted([*globals(), *_EXPORTS])

@@ -25,10 +25,9 @@ solution) is a `smibjax.ParameterError` (see `smibjax._errors`).
 
 from __future__ import annotations
 
-import ast
-import importlib
-from pathlib import Path
 from typing import TYPE_CHECKING
+
+from .._face import lazy_face
 
 if TYPE_CHECKING:  # the public names; loaded on first use (`__getattr__`)
     from .case import BUILTIN as BUILTIN
@@ -70,26 +69,5 @@ if TYPE_CHECKING:  # the public names; loaded on first use (`__getattr__`)
     from .simulate import simulate_case as simulate_case
 
 
-def _exports() -> dict[str, str]:
-    """public name -> defining module, read from the `TYPE_CHECKING` block above."""
-    tree = ast.parse(Path(__file__).read_text(encoding="utf-8"))
-    block = next(n for n in tree.body if isinstance(n, ast.If))
-    return {a.asname: n.module for n in block.body for a in n.names}
-
-
-_EXPORTS = _exports()
+_EXPORTS, __getattr__, __dir__ = lazy_face(__file__, __name__)
 __all__ = sorted(_EXPORTS)
-
-
-def __getattr__(name: str):
-    """Load a public name on first use (PEP 562)."""
-    if name in _EXPORTS:
-        module = importlib.import_module(f".{_EXPORTS[name]}", __name__)
-        value = getattr(module, name)
-        globals()[name] = value
-        return value
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-
-
-def __dir__() -> list[str]:
-    return sorted([*globals(), *_EXPORTS])
