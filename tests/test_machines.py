@@ -373,8 +373,8 @@ _se = jax.jit(saturation_factor, static_argnames="kind")
 def test_saturation_fits_pass_through_their_data_points(kind):
     s10 = np.array([0.05, 0.1, 0.03, 0.2, 0.0])
     s12 = np.array([0.2, 0.4, 0.5, 0.25, 0.0])
-    if kind == "quadratic":  # and S10 = 0 < S12 (saturation from psi = 1)
-        s10, s12 = np.append(s10, 0.0), np.append(s12, 0.3)
+    if kind == "exponential":  # S12 < S10: a falling factor, still through both
+        s10, s12 = np.append(s10, 0.3), np.append(s12, 0.2)
     for psi, want in ((1.0, s10), (1.2, s12)):
         got = _se(jnp.full(s10.shape, psi), s10, s12, kind=kind)
         np.testing.assert_allclose(got, want, rtol=1e-14, atol=1e-15)
@@ -393,13 +393,36 @@ def test_saturation_fits_pass_through_their_data_points(kind):
     np.testing.assert_allclose(se, want, rtol=1e-13, atol=1e-15)
 
 
+@pytest.mark.parametrize("kind", ["quadratic", "exponential"])
+def test_s10_zero_is_no_saturation_whatever_s12(kind):
+    """PSS/E: S(1.0) = 0 means no saturation at all. Before, the quadratic fit went
+    through (1.0, 0) and (1.2, S12) and saturated from 1 pu (Se(1.2) = S12); and a
+    GENROU with S10 = 0 < S12 must behave as one with S10 = S12 = 0 (init and rhs
+    at a state whose air-gap flux is above 1.2 pu)."""
+    s12 = np.array([0.3, 0.05, 1.0])
+    psi = np.linspace(0.5, 2.0, 16)[:, None]
+    assert np.all(np.asarray(_se(psi, np.zeros(3), s12, kind=kind)) == 0.0)
+    sat = _ref_machine(S10=[0.0], S12=[0.4], saturation=kind)
+    none = _ref_machine(S10=[0.0], S12=[0.0], saturation=kind)
+    v, s = _ref_power_flow()
+    v, s = v * 1.25, s * 1.2  # a high voltage: |E''| about 1.4 pu
+    x0, held = none.init(v, s, S_BASE)
+    x1, held1 = sat.init(v, s, S_BASE)
+    assert float(jnp.abs(none._emf(x0))[0]) > 1.2
+    np.testing.assert_array_equal(x1, x0)
+    np.testing.assert_array_equal(held1["Efd"], held["Efd"])
+    x = x0.at[2].multiply(1.1)  # off equilibrium, more flux
+    dx = [m.rhs(x, v, held, held, S_BASE) for m in (sat, none)]
+    np.testing.assert_array_equal(dx[0], dx[1])
+
+
 def test_bad_machine_data_is_refused_with_one_line():
     base = dict(gen=[0], mbase=[100.0], H=[4.0], D=[0.0], Tdop=[6.0], xd=[1.8])
     base.update(xq=[0.3], xdp=[0.3], ra=[0.0])
     cases = [
         (GENTRA, dict(xq=[0.5]), r"GENTRA.xq = \[0.5\] is not allowed: transient"),
         (GENTRA, dict(S10=[0.3], S12=[0.2]), "S10 < 1.2 S12"),
-        (GENTRA, dict(S10=[0.0], S12=[0.2], saturation="exponential"), "S10 > 0"),
+        (GENTRA, dict(S10=[0.1], S12=[0.0], saturation="exponential"), "S12 > 0"),
         (GENTRA, dict(saturation="cubic"), "GENTRA.saturation = 'cubic'"),
         (GENTRA, dict(H=[0.0]), r"GENTRA.H = \[0.\] is not allowed: must be > 0"),
     ]

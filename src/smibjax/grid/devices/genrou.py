@@ -39,10 +39,9 @@ Te = psid Iq - psiq Id = psi2q Id + psi2d Iq (= Pe + Ra |I|^2), and the swing eq
 is GENCLS's: d delta/dt = omega_b omega, 2 H d omega/dt = Pm - Te - D omega (omega the
 per-unit speed deviation; ANDES writes omega - 1 for it and M = 2H).
 
-Differences from ANDES: none in the equations. ANDES switches saturation off whenever
-S10 = 0; here the quadratic is fitted through both points (S10 = 0 < S12 saturates
-from psi2 = 1), and `saturation="exponential"` (GENROE's Se = S10 psi^n) is offered
-beside PSS/E's quadratic. X''q is not a separate dyr parameter (PSS/E's GENROU takes
+Differences from ANDES: none in the equations (S10 = 0 is no saturation in both,
+PSS/E's convention). `saturation="exponential"` (Se = S10 psi^n) is PSS/E's GENROE
+(`genroe.GENROE`: this class with that fit). X''q is not a separate dyr parameter (PSS/E's GENROU takes
 X''d for both); a different `xqpp` is refused with one line.
 
 Initialisation is closed form, so it is jittable and differentiable without Newton
