@@ -41,8 +41,8 @@ per-unit speed deviation; ANDES writes omega - 1 for it and M = 2H).
 
 Differences from ANDES: none in the equations (S10 = 0 is no saturation in both,
 PSS/E's convention). `saturation="exponential"` (Se = S10 psi^n) is PSS/E's GENROE
-(`genroe.GENROE`: this class with that fit). X''q is not a separate dyr parameter (PSS/E's GENROU takes
-X''d for both); a different `xqpp` is refused with one line.
+(`GENROE`: this class with that fit). X''q is not a separate dyr parameter (PSS/E's
+GENROU takes X''d for both); a different `xqpp` is refused with one line.
 
 Initialisation is closed form, so it is jittable and differentiable without Newton
 steps: |E''| = |V + (Ra + j X'') I| is frame-invariant, so Se is known; at rest
