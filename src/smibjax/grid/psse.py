@@ -815,6 +815,22 @@ _DC_EXCITER = (
     "SE2",
 )
 
+# GENSAL's and GENSAE's CONs (PSS/E Model Library): no q-axis transient circuit
+_SALIENT = (
+    "Tdo_p",
+    "Tdo_pp",
+    "Tqo_pp",
+    "H",
+    "D",
+    "Xd",
+    "Xq",
+    "Xd_p",
+    "Xd_pp",
+    "Xl",
+    "S10",
+    "S12",
+)
+
 DYR_MODELS: dict[str, tuple[str, ...]] = {
     "GENCLS": ("H", "D"),
     "GENTRA": ("Tdo_p", "H", "D", "Xd", "Xq", "Xd_p", "S10", "S12"),
@@ -834,6 +850,25 @@ DYR_MODELS: dict[str, tuple[str, ...]] = {
         "S10",
         "S12",
     ),
+    # machines of issue 45
+    "GENROE": (
+        "Tdo_p",
+        "Tdo_pp",
+        "Tqo_p",
+        "Tqo_pp",
+        "H",
+        "D",
+        "Xd",
+        "Xq",
+        "Xd_p",
+        "Xq_p",
+        "Xd_pp",
+        "Xl",
+        "S10",
+        "S12",
+    ),
+    "GENSAL": _SALIENT,
+    "GENSAE": _SALIENT,
     "SEXS": ("TA_TB", "TB", "K", "TE", "EMIN", "EMAX"),
     "IEEEX1": _DC_EXCITER,
     "EXDC2": _DC_EXCITER,
@@ -897,15 +932,20 @@ DYR_MODELS: dict[str, tuple[str, ...]] = {
 IB, come first, as PSS/E writes them). Source: PSS/E 33 Model Library (GENCLS, GENTRA,
 GENROU, SEXS, IEEEX1, EXDC2, EXST1, IEEEST, STAB1, TGOV1, CSVGN1), checked against
 ANDES 2.0's andes/io/psse-dyr.yaml, which has the same order for every model it reads
-(it has no GENTRA, STAB1 or CSVGN1). SYNEX is smibjax's own record (no PSS/E or
-ANDES model): the paper's synergetic excitation law as a decentralized exciter
-(`devices.synex`). Names: `_p` a prime (Xd_p = X'd, Tdo_p = T'do),
+(it has no GENTRA, STAB1 or CSVGN1). GENROE has GENROU's CONs; GENSAL and GENSAE
+(not in ANDES) PSS/E's 12 CONs, as in ANDES's nordic44/N44_BC.dyr. SYNEX is
+smibjax's own record (no PSS/E or ANDES model): the paper's synergetic excitation
+law as a decentralized exciter (`devices.synex`). Names: `_p` a prime (Xd_p = X'd, Tdo_p = T'do),
 `_pp` a double prime, `A_B` a ratio A/B; S10, S12 the saturation S(1.0), S(1.2)."""
 
 DYR_KINDS: dict[str, str] = {
     "GENCLS": "machine",
     "GENTRA": "machine",
     "GENROU": "machine",
+    # issue 45
+    "GENROE": "machine",
+    "GENSAL": "machine",
+    "GENSAE": "machine",
     "CSVGN1": "machine",  # PSS/E models an SVC as a machine on a generator record
     "SEXS": "exciter",
     "IEEEX1": "exciter",

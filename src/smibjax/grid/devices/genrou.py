@@ -119,18 +119,19 @@ class GENROU(AbstractMachine):
     state_names = ("delta", "omega", "e1q", "e1d", "e2d", "e2q")
 
     def __check_init__(self):
-        check_saturation("GENROU", self.saturation, self.S10, self.S12)
+        me = type(self).__name__  # GENROU or GENROE
+        check_saturation(me, self.saturation, self.S10, self.S12)
         names = "mbase H D Tdop Tdopp Tqop Tqopp xd xq xdp xqp xdpp xl ra".split()
         vals = {k: getattr(self, k) for k in names}
         if not is_concrete(*vals.values(), self.xqpp):
             return
         v = {k: np.asarray(a, float) for k, a in vals.items()}
         for k in names:
-            require(np.isfinite(v[k]), "GENROU", k, v[k], "must be finite")
+            require(np.isfinite(v[k]), me, k, v[k], "must be finite")
         for k in ("mbase", "H", "Tdop", "Tdopp", "Tqop", "Tqopp"):
-            require(v[k] > 0, "GENROU", k, v[k], "must be > 0")
+            require(v[k] > 0, me, k, v[k], "must be > 0")
         for k in ("D", "ra", "xl"):
-            require(v[k] >= 0, "GENROU", k, v[k], "must be >= 0")
+            require(v[k] >= 0, me, k, v[k], "must be >= 0")
         order = (
             ("xdpp", "xl", "must be >= xl = {}"),
             ("xdp", "xdpp", "must be >= xdpp = {}"),
@@ -139,14 +140,14 @@ class GENROU(AbstractMachine):
             ("xq", "xqp", "must be >= xqp = {}"),
         )
         for k, lo, allowed in order:
-            require(v[k] >= v[lo], "GENROU", k, v[k], allowed, v[lo])
+            require(v[k] >= v[lo], me, k, v[k], allowed, v[lo])
         for k in ("xdp", "xqp"):
-            require(v[k] > v["xl"], "GENROU", k, v[k], "must be > xl = {}", v["xl"])
+            require(v[k] > v["xl"], me, k, v[k], "must be > xl = {}", v["xl"])
         if self.xqpp is not None:
             q = np.asarray(self.xqpp, float)
             if not np.allclose(q, v["xdpp"], rtol=0, atol=1e-12):
                 raise ParameterError(
-                    f"GENROU.xqpp = {q} is not allowed: GENROU assumes X''q = X''d "
+                    f"{me}.xqpp = {q} is not allowed: {me} assumes X''q = X''d "
                     f"= {v['xdpp']} (PSS/E's dyr record has one X''d)"
                 )
 
