@@ -393,7 +393,7 @@ def _refuse_foreign(path, what: str) -> None:
     text = head.decode("utf-8", errors="replace").lstrip()
     fmt = None
     if head[:4] in (b"PK\x03\x04", b"\xd0\xcf\x11\xe0") or suffix in _SHEETS:
-        fmt = "a spreadsheet (xlsx, xls; ANDES also keeps cases so)"
+        fmt = "a spreadsheet (xlsx, xls)"
     elif suffix == ".json" or text[:1] in ("{", "["):
         fmt = "a JSON file"
     elif suffix == ".m" or _MATPOWER.search(text):
