@@ -763,3 +763,47 @@ def test_new_machine_gradient_matches_finite_differences(model, name):
     fd = float((up - down) / (2 * eps))
     assert abs(g) > 1e-4, g  # the angle does depend on it
     np.testing.assert_allclose(g, fd, rtol=1e-5)
+
+
+def test_new_machines_start_at_rest_in_a_real_case(tmp_path):
+    """Nordic 44 (ANDES's N44_BC files, built in as `nordic44`) with every other
+    GENSAL written as GENSAE and every other GENROU as GENROE (the same CONs): 80
+    machines of the four models, saturation on (S10 > 0 on every record), the
+    controllers smibjax lacks skipped. Every state derivative at t = 0 is below
+    1e-8 (measured 1.5e-14 with GENSAL/GENROU only)."""
+    import re
+    import warnings
+
+    from smibjax.grid.case import case_files, load_case
+    from smibjax.grid.loop import evaluate, state_labels
+    from smibjax.grid.network import stage_configs, stage_matrices
+    from smibjax.grid.operating import operating_point
+
+    raw, dyr = case_files("nordic44")
+    seen = {"GENSAL": 0, "GENROU": 0}
+
+    def swap(m):
+        seen[m.group(1)] += 1
+        if seen[m.group(1)] % 2:
+            return m.group(0)
+        return {"GENSAL": "'GENSAE'", "GENROU": "'GENROE'"}[m.group(1)]
+
+    text = re.sub(r"'(GENSAL|GENROU)'", swap, dyr.read_text())
+    path = tmp_path / "n44_mixed.dyr"
+    path.write_text(text)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # the skipped controllers
+        case = load_case(raw, path, skip_unsupported=True)
+    names = sorted(type(m).__name__ for m in case.machines)
+    assert names == ["GENROE", "GENROU", "GENSAE", "GENSAL"]
+    assert sum(len(m.gen) for m in case.machines) == 80
+    op, _ = operating_point(case)
+
+    @jax.jit
+    def at_rest(op):
+        mats = stage_matrices(op.grid, stage_configs(op.grid, ()))
+        return evaluate(case, op, mats, 0, op.y0)[0]
+
+    dy = np.asarray(at_rest(op))
+    worst = int(np.argmax(np.abs(dy)))
+    assert np.abs(dy).max() < 1e-8, state_labels(case)[worst]
