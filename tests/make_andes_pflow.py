@@ -20,7 +20,8 @@ from pathlib import Path
 
 CASES_DIR = Path(__file__).resolve().parents[1] / "src" / "smibjax" / "grid" / "cases"
 OUT = Path(__file__).resolve().parent / "data" / "andes_pflow.json"
-CASES = ("kundur", "ieee39", "smib")
+CASES = ("kundur", "ieee39", "smib", "ieee14", "wecc179", "npcc")
+# nordic44.raw: ANDES 2.0's Newton does not converge (102 iterations); not stored
 TOL = 1e-10
 
 

@@ -161,6 +161,8 @@ def raw_block(name: str, begin: str) -> list[list[str]]:
 def test_case_files_are_package_data():
     assert case_files() == sorted(
         [
+            "ieee14.dyr",
+            "ieee14.raw",
             "ieee39.dyr",
             "ieee39.raw",
             "ieee39_gencls.dyr",
@@ -173,6 +175,13 @@ def test_case_files_are_package_data():
             "smib.dyr",
             "smib.raw",
             "smib_gencls.dyr",
+            # ANDES 2.0's public cases (issue 45)
+            "nordic44.dyr",
+            "nordic44.raw",
+            "npcc.dyr",
+            "npcc.raw",
+            "wecc179.dyr",
+            "wecc179.raw",
         ]
     )
     assert (CASES_DIR / "README.md").is_file()

@@ -153,7 +153,14 @@ def test_the_smib_case_reproduces_the_closed_form_model():
 def test_every_builtin_case_starts_at_an_exact_equilibrium(name):
     """Every state derivative at t = 0 is below 1e-8 (power flow, then each
     device's initialization), and the network solution gives back the power flow's
-    bus voltages."""
+    bus voltages. (A public case whose dyr file has models smibjax lacks is skipped
+    until they land: tests/test_builtin_cases.py.)"""
+    from smibjax.grid.case import case_files
+    from smibjax.grid.psse import unsupported_models
+
+    missing = unsupported_models(case_files(name)[1])
+    if missing:
+        pytest.skip(f"{name}: dyr models smibjax lacks: {', '.join(missing)}")
     case = load_case(name)
     op, pf = operating_point(case)
 

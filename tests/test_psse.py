@@ -389,14 +389,14 @@ RAW_ERRORS = [
         "{f}:9: generator field MBASE: -1.0 is not positive",
     ),
     (
-        "0, 100.0, 34, 0, 1, 60.0\nT1\nT2\n",
-        "{f}:1: case identification field REV: version 34 is not supported "
-        "(this reader reads PSS/E 32 and 33 raw files)",
+        "0, 100.0, 36, 0, 1, 60.0\nT1\nT2\n",
+        "{f}:1: case identification field REV: version 36 is not supported "
+        "(this reader reads PSS/E 32, 33, 34 and 35 raw files)",
     ),
     (  # a version written as a huge number: shown short, not as 309 digits
         "0, 100.0, 1e308, 0, 1, 60.0\nT1\nT2\n",
         "{f}:1: case identification field REV: version 1e+308 is not supported "
-        "(this reader reads PSS/E 32 and 33 raw files)",
+        "(this reader reads PSS/E 32, 33, 34 and 35 raw files)",
     ),
     (
         "0, abc, 33\n",
@@ -476,6 +476,11 @@ def test_dyr_models_table():
         "Tdo_p", "Tdo_pp", "Tqo_p", "Tqo_pp", "H", "D", "Xd", "Xq",
         "Xd_p", "Xq_p", "Xd_pp", "Xl", "S10", "S12",
     )  # fmt: skip
+    assert psse.DYR_MODELS["GENROE"] == psse.DYR_MODELS["GENROU"]
+    assert psse.DYR_MODELS["GENSAL"] == psse.DYR_MODELS["GENSAE"] == (
+        "Tdo_p", "Tdo_pp", "Tqo_pp", "H", "D", "Xd", "Xq", "Xd_p", "Xd_pp", "Xl",
+        "S10", "S12",
+    )  # fmt: skip
     assert psse.DYR_MODELS["IEEEST"][:3] == ("ICS", "IB", "A1")
     assert psse.DYR_MODELS["EXDC2"] == psse.DYR_MODELS["IEEEX1"]
     assert len(psse.DYR_MODELS["IEEEX1"]) == 16 and len(psse.DYR_MODELS["CSVGN1"]) == 10
@@ -531,31 +536,55 @@ def test_read_dyr(system):
 
 
 def test_dyr_skip_unsupported(tmp_path):
+    """With skip_unsupported: one warning naming every unsupported model (records,
+    first line); ANDES's Toggle: its own one warning, skipped with or without."""
     path = tmp_path / "x.dyr"
     path.write_text(
         "1 'GENCLS' 1 3.0 0.0 /\n1 'USRMDL' 1 2 3 /\n2 'USRMDL' 1 4 /\n"
-        "Line 'Toggle' Line_8 2.0 /\n"
+        "Line 'Toggle' Line_8 2.0 /\n3 'HYGOV' 1 5 /\n"
     )
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         recs = psse.read_dyr(path, skip_unsupported=True)
     assert [r.model for r in recs] == ["GENCLS"]
+    toggle = (
+        f"{path}:4: 1 ANDES Toggle record skipped (ANDES's switching event, not "
+        "PSS/E data; give the event to the simulation: --trip-line, --fault-line)"
+    )
     assert [str(w.message) for w in caught] == [
-        f"{path}:2: dyr model 'USRMDL' is not supported; its records are skipped",
-        f"{path}:4: dyr model 'Toggle' is not supported; its records are skipped",
+        toggle,
+        f"{path}:2: dyr models 'USRMDL', 'HYGOV' are not supported; their records "
+        "are skipped ('USRMDL': 2 records from line 2; 'HYGOV': 1 record from line 5)",
     ]
+    assert psse.unsupported_models(path) == ["USRMDL", "HYGOV"]
+    # without skip_unsupported: one refusal naming both, and how to skip them
+    with pytest.raises(psse.PsseError) as err:
+        psse.read_dyr(path)
+    assert str(err.value) == (
+        f"{path}:2: dyr models 'USRMDL', 'HYGOV' are not supported (supported: "
+        f"{SUPPORTED}); 'USRMDL': 2 records from line 2; 'HYGOV': 1 record from line "
+        "5; " + SKIP
+    )
+    # a Toggle alone is not a refusal
+    path.write_text("1 'GENCLS' 1 3.0 0.0 /\n  Line  'Toggle'  Line_1  1.0 /\n")
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        assert [r.model for r in psse.read_dyr(path)] == ["GENCLS"]
+    assert [str(w.message) for w in caught] == [toggle.replace(":4:", ":2:")]
 
 
-SUPPORTED = (
-    "GENCLS, GENTRA, GENROU, SEXS, IEEEX1, EXDC2, EXST1, IEEEST, STAB1, TGOV1, CSVGN1, "
-    "SYNEX"
+SUPPORTED = ", ".join(psse.DYR_MODELS)
+SKIP = (
+    "--skip-unsupported (skip_unsupported=True) skips their records, which leaves a "
+    "skipped exciter's field voltage and a skipped governor's mechanical power constant"
 )
 
 
 DYR_ERRORS = [
     (
-        "/ c\n1 'GENCLS' 1 3.0 0.0 /\n 2 'GENSAL' 1\n 1 2 3 /\n",
-        "{f}:3: dyr model 'GENSAL' is not supported (supported: " + SUPPORTED + ")",
+        "/ c\n1 'GENCLS' 1 3.0 0.0 /\n 2 'USRMDL' 1\n 1 2 3 /\n",
+        "{f}:3: dyr model 'USRMDL' is not supported (supported: " + SUPPORTED + "); "
+        "'USRMDL': 1 record from line 3; " + SKIP,
     ),
     (
         "1 'GENCLS' 1 3.0 /\n",
@@ -593,7 +622,7 @@ def test_dyr_errors(tmp_path, text, message):
     assert str(err.value) == message.format(f=path)
 
 
-MACHINES = "GENCLS, GENTRA, GENROU, CSVGN1"
+MACHINES = ", ".join(m for m, k in psse.DYR_KINDS.items() if k == "machine")
 
 
 DYNAMICS_ERRORS = [
@@ -746,19 +775,15 @@ def test_against_andes_on_kundur():
     system = psse.to_system(raw)
     ss = _andes(raw.path, _andes_cases() / "kundur" / "kundur_full.dyr")
     assert _compare_with_andes(raw, system, ss) == 15
-    with pytest.warns(UserWarning, match="'Toggle' is not supported"):
-        recs = psse.read_dyr(
-            _andes_cases() / "kundur" / "kundur_full.dyr", skip_unsupported=True
-        )
+    with pytest.warns(UserWarning, match="1 ANDES Toggle record skipped"):
+        recs = psse.read_dyr(_andes_cases() / "kundur" / "kundur_full.dyr")
     by_gen = psse.check_dynamics(system, recs)
     assert [sorted(v) for v in by_gen.values()] == [
         ["exciter", "governor", "machine"]
     ] * 4
     _compare_dyr_with_andes(recs, ss.dyr_dict)
-    with pytest.warns(UserWarning, match="'Toggle' is not supported"):
-        cls = psse.read_dyr(
-            _andes_cases() / "kundur" / "kundur_gencls.dyr", skip_unsupported=True
-        )
+    with pytest.warns(UserWarning, match="1 ANDES Toggle record skipped"):
+        cls = psse.read_dyr(_andes_cases() / "kundur" / "kundur_gencls.dyr")
     assert [r.params["H"] for r in cls] == [13.0, 13.0, 12.35, 12.35]
 
 
@@ -821,6 +846,7 @@ def test_dyr_order_against_andes_yaml():
     assert both == [
         "GENCLS",
         "GENROU",
+        "GENSAL",  # ANDES reads it into its GENROU (X'q = X'd): docs/machines.md
         "SEXS",
         "IEEEX1",
         "EXDC2",
@@ -846,3 +872,111 @@ def _andes_cases() -> Path:
     was collected made the folder /nonexistent and the tests fail, not skip."""
     andes = pytest.importorskip("andes")
     return Path(andes.__file__).parent / "cases"
+
+
+# ------------------------------------------------------- raw versions 34 and 35
+
+
+def test_raw_v34_solves_to_psse_34s_own_load_flow():
+    """IEEE 9-bus written by PSS/E 34.3 (tests/data/psse/ieee9_v34.raw, README.md
+    there): system-wide data, `@!` header lines, 12 ratings per branch and winding.
+    Our power flow of it lands on the voltages PSS/E saved, which it printed to 5
+    decimals (measured: 2.9e-5 pu, 2.3e-3 deg; a v33 reader's layout misreads every
+    branch, the first rating taken for GI)."""
+    from smibjax.grid.powerflow import solve_power_flow
+
+    raw = psse.read_raw(DATA / "ieee9_v34.raw")
+    assert raw.version == 34 and raw.title == ("", "")
+    assert (len(raw.buses), len(raw.loads), len(raw.generators)) == (9, 3, 3)
+    assert (len(raw.branches), len(raw.transformers)) == (6, 3)
+    br = raw.branches[0]
+    assert (br["I"], br["J"], br["X"], br["B"], br["RATE1"], br["GI"]) == (
+        4, 5, 0.085, 0.176, 250.0, 0.0,
+    )  # fmt: skip
+    assert raw.generators[1]["MBASE"] == 310.0 and raw.transformers[2]["X1-2"] == 0.0586
+    pf = solve_power_flow(psse.to_system(raw))
+    vm = np.array([b["VM"] for b in raw.buses])
+    va = np.array([b["VA"] for b in raw.buses])
+    assert np.abs(np.asarray(pf.vm) - vm).max() < 1e-4
+    assert np.abs(np.degrees(np.asarray(pf.va)) - va).max() < 5e-3
+
+
+def test_raw_v35_reads_a_file_psse_35_wrote():
+    """IEEE 25-bus written by PSS/E 35.1 (tests/data/psse/case25_v35.raw): v35's
+    generator NREG before MBASE, the winding's NOD, the switched shunt's ID, SWREG
+    and NREG, and two system switching devices (read as branches of their X); the
+    values against the file's own lines; the power flow solves. (PSS/E's saved
+    voltages are not this file's load flow: its transformers use impedance
+    correction tables, which this reader does not apply.)"""
+    from smibjax.grid.powerflow import solve_power_flow
+
+    raw = psse.read_raw(DATA / "case25_v35.raw")
+    assert raw.version == 35 and raw.title[0] == "IEEE 25 BUS NETWORK"
+    counts = [len(raw.buses), len(raw.loads), len(raw.fixed_shunts)]
+    counts += [len(raw.generators), len(raw.branches), len(raw.transformers)]
+    assert counts == [25, 17, 1, 42, 35, 7]
+    g = raw.generators[2]  # 101,'3 ', 76.0, ..., IREG 101, NREG 0, MBASE 100.0
+    assert (g["I"], g["ID"], g["PG"], g["IREG"], g["NREG"], g["MBASE"]) == (
+        101, "3", 76.0, 101, 0, 100.0,
+    )  # fmt: skip
+    assert (g["ZX"], g["STAT"], g["PT"]) == (0.181, 1, 80.0)
+    assert raw.generators[0]["STAT"] == 0
+    sw = [b for b in raw.branches if b.get("_switch")]
+    assert [(b["I"], b["J"], b["X"], b["R"], b["ST"]) for b in sw] == [
+        (220, 222, 1e-4, 0.0, 1),
+        (219, 213, 1e-4, 0.0, 1),
+    ]
+    t = raw.transformers[0]  # 103-224: WINDV1 1.0375, ..., CONT1 215, NOD1 0, RMA1 1.05
+    assert (t["WINDV1"], t["CONT1"], t["NOD1"], t["RMA1"], t["NTP1"]) == (
+        1.0375, 215, 0, 1.05, 17,
+    )  # fmt: skip
+    assert (t["R1-2"], t["X1-2"], t["WINDV2"]) == (2.3e-3, 2.0e-2, 1.0)
+    sh = raw.switched_shunts[0]
+    assert (sh["I"], sh["ID"], sh["SWREG"], sh["BINIT"]) == (101, "1", 152, -115.0)
+    assert bool(solve_power_flow(psse.to_system(raw)).converged)
+
+
+FOREIGN = [
+    ("case9.m", "function mpc = case9\nmpc.baseMVA = 100;\n", "a MATPOWER case (.m)"),
+    ("case9.txt", "%% MATPOWER\nmpc.bus = [\n1 3 0 0;\n];\n", "a MATPOWER case (.m)"),
+    ("case.json", '{"Bus": []}\n', "a JSON file"),
+    ("case.raw", '[{"bus": 1}]\n', "a JSON file"),
+    ("case.xlsx", "PK\x03\x04 zipped", "a spreadsheet (xlsx, xls)"),
+]
+
+
+@pytest.mark.parametrize(("file", "text", "what"), FOREIGN)
+def test_a_foreign_format_is_named(tmp_path, file, text, what):
+    path = tmp_path / file
+    path.write_text(text)
+    for read, kind in ((psse.read_raw, "raw"), (psse.read_dyr, "dyr")):
+        with pytest.raises(psse.PsseError) as err:
+            read(path)
+        assert str(err.value) == (
+            f"{path}:1: this is {what}, not a PSS/E {kind} file: smibjax reads "
+            "PSS/E v32-v35 raw + dyr files"
+        )
+
+
+@pytest.mark.parametrize("command", ["modes", "simulate"])
+def test_every_command_refuses_unsupported_models_in_one_line(
+    tmp_path, capsys, command
+):
+    """`modes` gave a traceback for a dyr with an unsupported model; now it refuses
+    as `simulate` does: exit 2, one line naming every unsupported model and
+    --skip-unsupported, nothing written."""
+    from smibjax.cli import main
+    from smibjax.grid.cases import case_file
+
+    dyr = tmp_path / "x.dyr"
+    dyr.write_text(
+        case_file("smib_gencls.dyr").read_text()
+        + "     1 'ESST3A' 1  0.02 0.2 -0.2 /\n     1 'IEEEG1' 1  1 2 3 /\n"
+    )
+    out = tmp_path / "out"
+    argv = [command, "--case", str(case_file("smib.raw")), "--dyr", str(dyr)]
+    assert main([*argv, "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1, err
+    assert "dyr models 'ESST3A', 'IEEEG1' are not supported" in err[0]
+    assert "--skip-unsupported" in err[0] and not out.exists()

@@ -51,8 +51,9 @@ def add_case_options(p, events: bool = True) -> None:
         "--case",
         metavar="NAME|FILE.raw",
         help="a built-in case (kundur, kundur-gencls, kundur-nopss, kundur-synex, ieee39, "
-        "ieee39-pss, ieee39-gencls, smib, smib-gencls) or a PSS/E v33 raw file "
-        "(with --dyr); without it the command runs the paper's SMIB",
+        "ieee39-pss, ieee39-gencls, smib, smib-gencls, ieee14, wecc179, npcc, nordic44) "
+        "or a PSS/E v32-v35 raw file (with --dyr); without it the command runs the "
+        "paper's SMIB",
     )
     g.add_argument(
         "--dyr", metavar="FILE.dyr", help="the dyr file of a --case raw file"

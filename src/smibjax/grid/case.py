@@ -34,9 +34,15 @@ BUILTIN = {
     "ieee39-gencls": ("ieee39.raw", "ieee39_gencls.dyr"),
     "smib": ("smib.raw", "smib.dyr"),
     "smib-gencls": ("smib.raw", "smib_gencls.dyr"),
+    # ANDES 2.0's public cases, as shipped (cases/README.md; issue 45)
+    "ieee14": ("ieee14.raw", "ieee14.dyr"),
+    "wecc179": ("wecc179.raw", "wecc179.dyr"),
+    "npcc": ("npcc.raw", "npcc.dyr"),
+    "nordic44": ("nordic44.raw", "nordic44.dyr"),
 }
 
 MACHINES = ("GENCLS", "GENTRA", "GENROU")
+MACHINES += ("GENROE", "GENSAL", "GENSAE")  # issue 45
 EXCITERS = ("SEXS", "IEEEX1", "EXDC2", "EXST1", "SYNEX")
 STABILIZERS = ("IEEEST", "STAB1")
 GOVERNORS = ("TGOV1",)

@@ -17,8 +17,10 @@ listed there too.
 from __future__ import annotations
 
 import math
+import re
 import warnings
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 
@@ -34,6 +36,7 @@ __all__ = [
     "check_dynamics",
     "read_dyr",
     "read_raw",
+    "unsupported_models",
     "to_system",
 ]
 
@@ -276,7 +279,68 @@ _LAYOUT = {
     "branch": _BRANCH,
     "switched shunt": _SWSHUNT,
 }
-_VERSIONS = (32, 33)
+_VERSIONS = (32, 33, 34, 35)
+
+# -- versions 34 and 35 (PSS/E 34 and 35 POM, checked against files PSS/E wrote:
+# tests/data/psse/README.md). What differs from 33 in the records read here: a
+# system-wide data section after the titles (GENERAL, GAUSS, NEWTON, ADJUST, TYSL,
+# SOLVER, RATING records, ended by a 0 record), header lines `@!` anywhere, a branch
+# NAME and 12 ratings, the system switching devices after the branches, 12 ratings
+# per transformer winding, and in 35 the generator's NREG, the winding's NOD and the
+# switched shunt's ID, SWREG and NREG.
+_SYSTEM_WIDE = ("GENERAL", "GAUSS", "NEWTON", "ADJUST", "TYSL", "SOLVER", "RATING")
+_RATES = [(f"RATE{k}", "f", 0.0) for k in range(1, 13)]
+_BRANCH_34 = _BRANCH[:6] + [("NAME", "s", "")] + _RATES + _BRANCH[9:]
+_SWITCH = (
+    [("I", "i", _REQ), ("J", "i", _REQ), ("CKT", "s", "1"), ("X", "f", _REQ)]
+    + _RATES
+    + [("STAT", "i", 1), ("NSTAT", "i", 1), ("MET", "i", 1), ("STYPE", "i", 1)]
+    + [("NAME", "s", "")]
+)
+_GEN_35 = _GEN[:8] + [("NREG", "i", 0)] + _GEN[8:]
+_SWSHUNT_35 = [
+    ("I", "i", _REQ),
+    ("ID", "s", "1"),
+    ("MODSW", "i", 1),
+    ("ADJM", "i", 0),
+    ("STAT", "i", 1),
+    ("VSWHI", "f", 1.0),
+    ("VSWLO", "f", 1.0),
+    ("SWREG", "i", 0),
+    ("NREG", "i", 0),
+    ("RMPCT", "f", 100.0),
+    ("RMIDNT", "s", ""),
+    ("BINIT", "f", 0.0),
+]
+
+
+def _winding_34(w: str, nod: bool) -> list:
+    """Winding w's record in versions 34 (nod False) and 35 (with NODw)."""
+    old = _winding(w)  # WINDV NOMV ANG RATA RATB RATC COD CONT RMA ... CX
+    rates = [(f"RATE{w}-{k}", "f", 0.0) for k in range(1, 13)]
+    return old[:3] + rates + old[6:8] + ([("NOD" + w, "i", 0)] if nod else []) + old[8:]
+
+
+def _layouts(version: int):
+    """(blocks, record layouts, transformer lines) of a raw file version."""
+    if version <= 33:
+        return _BLOCKS, _LAYOUT, _XF_LINES
+    nod = version >= 35
+    blocks = _BLOCKS[:5] + ("switching device",) + _BLOCKS[5:]
+    layout = dict(_LAYOUT, branch=_BRANCH_34)
+    layout["switching device"] = _SWITCH
+    if version >= 35:
+        layout["generator"] = _GEN_35
+        layout["switched shunt"] = _SWSHUNT_35
+    xf = {
+        2: (
+            _XF2,
+            _winding_34("1", nod),
+            [("WINDV2", "f", None), ("NOMV2", "f", 0.0)],
+        ),
+        3: (_XF2_3W, *(_winding_34(w, nod) for w in "123")),
+    }
+    return blocks, layout, xf
 
 
 def _number(tok: str, kind: str) -> float | int:
@@ -318,6 +382,36 @@ def _record(fields, quoted, layout, where, what):
 # --------------------------------------------------------------------- raw reader
 
 
+def _refuse_foreign(path, what: str) -> None:
+    """Raise `PsseError` if `path` is another program's format (MATPOWER, JSON, a
+    spreadsheet) by its name or its first bytes; a missing file is left to `open`."""
+    suffix = Path(str(path)).suffix.lower()
+    try:
+        with open(path, "rb") as fh:
+            head = fh.read(4096)
+    except OSError:
+        return
+    text = head.decode("utf-8", errors="replace").lstrip()
+    fmt = None
+    if head[:4] in (b"PK\x03\x04", b"\xd0\xcf\x11\xe0") or suffix in _SHEETS:
+        fmt = "a spreadsheet (xlsx, xls)"
+    elif suffix == ".json" or text[:1] in ("{", "["):
+        fmt = "a JSON file"
+    elif suffix == ".m" or _MATPOWER.search(text):
+        fmt = "a MATPOWER case (.m)"
+    if fmt:
+        raise PsseError(
+            f"{path}:1: this is {fmt}, not a PSS/E {what} file: smibjax reads PSS/E "
+            "v32-v35 raw + dyr files"
+        )
+
+
+_SHEETS = (".xlsx", ".xls", ".xlsm", ".ods")
+_MATPOWER = re.compile(
+    r"^\s*function\s+mpc\s*=|^\s*mpc\.(baseMVA|bus|gen|branch)\b", re.M
+)
+
+
 @dataclass
 class RawData:
     """The records of a PSS/E raw file as read (PSS/E units: MW, Mvar, kV, degrees;
@@ -351,21 +445,28 @@ _ATTR = {
 
 
 def read_raw(path) -> RawData:
-    """Read a PSS/E version 33 (or 32, whose records read here have the same fields)
-    raw file: case identification (SBASE, BASFRQ, two title lines), buses, loads,
-    fixed shunts, generators, non-transformer branches, two- and three-winding
-    transformers (K != 0) and switched shunts. Areas, dc lines, impedance
+    """Read a PSS/E raw file of version 32, 33, 34 or 35 (the records read here have
+    the same fields in 32 and 33; 34 and 35: `_layouts`): case identification
+    (SBASE, BASFRQ, two title lines), buses, loads, fixed shunts, generators,
+    non-transformer branches, system switching devices (34, 35: read as branches of
+    reactance X, j ZERO_Z where X = 0), two- and three-winding transformers (K != 0)
+    and switched shunts. The system-wide data (34, 35), areas, dc lines, impedance
     corrections, multi-section lines, zones, transfers, owners and FACTS devices are
-    skipped; reading stops at the end of the switched shunt data or at `Q`. A
-    version other than 32 or 33, a malformed field or a record naming an unknown bus
-    raises `PsseError`."""
+    skipped, and so are `@!` header lines; reading stops at the end of the switched
+    shunt data or at `Q`. Another version, another program's format (MATPOWER,
+    JSON, a spreadsheet), a malformed field or a record naming an unknown bus raises
+    `PsseError`."""
     name = str(path)
+    _refuse_foreign(path, "raw")
     with open(path, encoding="utf-8", errors="replace") as fh:
         lines = fh.read().splitlines()
-    if not lines:
+    first = 0  # the case identification: the first line that is not a `@!` header
+    while first < len(lines) and lines[first].lstrip().startswith("@!"):
+        first += 1
+    if first >= len(lines):
         raise PsseError(f"{name}:1: case identification: the file is empty")
-    where = f"{name}:1"
-    f, q, _ = _split(lines[0], where)
+    where = f"{name}:{first + 1}"
+    f, q, _ = _split(lines[first], where)
     head = _record(
         f,
         q,
@@ -383,13 +484,15 @@ def read_raw(path) -> RawData:
     if head["REV"] not in _VERSIONS:
         raise PsseError(
             f"{where}: case identification field REV: version {head['REV']:.6g} is not "
-            "supported (this reader reads PSS/E 32 and 33 raw files)"
+            "supported (this reader reads PSS/E 32, 33, 34 and 35 raw files)"
         )
     if head["SBASE"] <= 0:
         raise PsseError(
             f"{where}: case identification field SBASE: {head['SBASE']!r} is not positive"
         )
-    title = tuple((lines[k].rstrip() if k < len(lines) else "") for k in (1, 2))
+    title = tuple(
+        (lines[k].rstrip() if k < len(lines) else "") for k in (first + 1, first + 2)
+    )
     raw = RawData(
         path=name,
         version=head["REV"],
@@ -397,25 +500,36 @@ def read_raw(path) -> RawData:
         basfrq=float(head["BASFRQ"]) or 60.0,
         title=title,
     )
+    blocks, layouts, xf_lines = _layouts(raw.version)
 
     block = 0
-    k = 3
-    while k < len(lines) and block < len(_BLOCKS):
+    k = first + 3
+    system_wide = raw.version >= 34  # until its 0 record (or the first bus record)
+    while k < len(lines) and block < len(blocks):
         lineno = k + 1
         where = f"{name}:{lineno}"
-        f, q, _ = _split(lines[k], where)
+        text = lines[k]
         k += 1
+        if text.lstrip().startswith("@!"):
+            continue  # a header line (34, 35)
+        f, q, _ = _split(text, where)
         if not f or (len(f) == 1 and f[0] is None):
             continue  # blank or comment-only line
+        if system_wide:
+            if not q[0] and str(f[0]).upper() in _SYSTEM_WIDE:
+                continue
+            system_wide = False
+            if f[0] == "0" and not q[0]:
+                continue  # the end of the system-wide data
         if f[0] == "Q" and not q[0]:
             break
         if f[0] == "0" and not q[0]:
             block += 1
             continue
-        kind = _BLOCKS[block]
+        kind = blocks[block]
         if kind == "transformer":
             rec = _record(f, q, _XF1, where, "transformer")
-            rest = _XF_LINES[2 if rec["K"] == 0 else 3]
+            rest = xf_lines[2 if rec["K"] == 0 else 3]
             if k + len(rest) > len(lines):
                 n = 2 if rec["K"] == 0 else 3
                 raise PsseError(
@@ -427,8 +541,16 @@ def read_raw(path) -> RawData:
                 f2, q2, _ = _split(lines[k], w)
                 rec.update(_record(f2, q2, layout, w, "transformer"))
                 k += 1
-        elif kind in _LAYOUT:
-            rec = _record(f, q, _LAYOUT[kind], where, kind)
+        elif kind == "switching device":
+            sw = _record(f, q, layouts[kind], where, "switching device")
+            # a branch of reactance X, no resistance or charging (a tie where X = 0)
+            rec = {n: d for n, _, d in _BRANCH if d is not _REQ}
+            rec.update(I=sw["I"], J=sw["J"], CKT=sw["CKT"], ST=sw["STAT"])
+            rec.update(X=sw["X"] if sw["X"] != 0.0 else ZERO_Z, R=0.0)
+            rec["_switch"] = True
+            kind = "branch"
+        elif kind in layouts:
+            rec = _record(f, q, layouts[kind], where, kind)
         else:
             continue  # a category this reader skips
         rec["_line"] = lineno
@@ -816,6 +938,22 @@ _DC_EXCITER = (
     "SE2",
 )
 
+# GENSAL's and GENSAE's CONs (PSS/E Model Library): no q-axis transient circuit
+_SALIENT = (
+    "Tdo_p",
+    "Tdo_pp",
+    "Tqo_pp",
+    "H",
+    "D",
+    "Xd",
+    "Xq",
+    "Xd_p",
+    "Xd_pp",
+    "Xl",
+    "S10",
+    "S12",
+)
+
 DYR_MODELS: dict[str, tuple[str, ...]] = {
     "GENCLS": ("H", "D"),
     "GENTRA": ("Tdo_p", "H", "D", "Xd", "Xq", "Xd_p", "S10", "S12"),
@@ -835,6 +973,25 @@ DYR_MODELS: dict[str, tuple[str, ...]] = {
         "S10",
         "S12",
     ),
+    # machines of issue 45
+    "GENROE": (
+        "Tdo_p",
+        "Tdo_pp",
+        "Tqo_p",
+        "Tqo_pp",
+        "H",
+        "D",
+        "Xd",
+        "Xq",
+        "Xd_p",
+        "Xq_p",
+        "Xd_pp",
+        "Xl",
+        "S10",
+        "S12",
+    ),
+    "GENSAL": _SALIENT,
+    "GENSAE": _SALIENT,
     "SEXS": ("TA_TB", "TB", "K", "TE", "EMIN", "EMAX"),
     "IEEEX1": _DC_EXCITER,
     "EXDC2": _DC_EXCITER,
@@ -898,15 +1055,20 @@ DYR_MODELS: dict[str, tuple[str, ...]] = {
 IB, come first, as PSS/E writes them). Source: PSS/E 33 Model Library (GENCLS, GENTRA,
 GENROU, SEXS, IEEEX1, EXDC2, EXST1, IEEEST, STAB1, TGOV1, CSVGN1), checked against
 ANDES 2.0's andes/io/psse-dyr.yaml, which has the same order for every model it reads
-(it has no GENTRA, STAB1 or CSVGN1). SYNEX is smibjax's own record (no PSS/E or
-ANDES model): the paper's synergetic excitation law as a decentralized exciter
-(`devices.synex`). Names: `_p` a prime (Xd_p = X'd, Tdo_p = T'do),
+(it has no GENTRA, STAB1 or CSVGN1). GENROE has GENROU's CONs; GENSAL and GENSAE
+(not in ANDES) PSS/E's 12 CONs, as in ANDES's nordic44/N44_BC.dyr. SYNEX is
+smibjax's own record (no PSS/E or ANDES model): the paper's synergetic excitation
+law as a decentralized exciter (`devices.synex`). Names: `_p` a prime (Xd_p = X'd, Tdo_p = T'do),
 `_pp` a double prime, `A_B` a ratio A/B; S10, S12 the saturation S(1.0), S(1.2)."""
 
 DYR_KINDS: dict[str, str] = {
     "GENCLS": "machine",
     "GENTRA": "machine",
     "GENROU": "machine",
+    # issue 45
+    "GENROE": "machine",
+    "GENSAL": "machine",
+    "GENSAE": "machine",
     "CSVGN1": "machine",  # PSS/E models an SVC as a machine on a generator record
     "SEXS": "exciter",
     "IEEEX1": "exciter",
@@ -936,16 +1098,61 @@ class DyrRecord:
 
 def read_dyr(path, skip_unsupported: bool = False) -> list[DyrRecord]:
     """Read a PSS/E dyr file: records `BUS 'MODEL' ID p1 p2 ... /`, a record possibly
-    spanning lines and ended by `/` (text after it on that line is a comment). Only
-    the models of `DYR_MODELS` are read; another model raises `PsseError` naming it and
-    the supported ones, or, with `skip_unsupported`, warns once per model name and is
-    skipped. A wrong parameter count or a field that is not a number raises
-    `PsseError` (file:line: MODEL field NAME: ...)."""
+    spanning lines and ended by `/` (text after it on that line is a comment).
+
+    Only the models of `DYR_MODELS` are read. Records of other models are refused
+    with one `PsseError` naming every unsupported model of the file (with its number
+    of records and its first line) and how to skip them, or, with
+    `skip_unsupported`, skipped with one warning naming them. ANDES's `Toggle`
+    record (`Line 'Toggle' Line_8 2.0 /`: a switching event in ANDES's own dyr
+    extension, not PSS/E data) is skipped with one warning either way; give the
+    event to the simulation instead. A wrong parameter count or a field that is not
+    a number raises `PsseError` (file:line: MODEL field NAME: ...); so does another
+    program's format (MATPOWER, JSON, a spreadsheet)."""
     name = str(path)
+    out, unsupported, toggles = _scan_dyr(path)
+    if toggles:
+        warnings.warn(
+            f"{name}:{toggles[0]}: {_count(toggles, 'ANDES Toggle record')} skipped "
+            "(ANDES's switching event, not PSS/E data; give the event to the "
+            "simulation: --trip-line, --fault-line)",
+            stacklevel=2,
+        )
+    if unsupported:
+        first = min(v[0] for v in unsupported.values())
+        several = len(unsupported) > 1
+        names = ", ".join(repr(m) for m in unsupported)
+        what = f"dyr models {names} are" if several else f"dyr model {names} is"
+        where = "; ".join(
+            f"{m!r}: {_count(v, 'record')} from line {v[0]}"
+            for m, v in unsupported.items()
+        )
+        if skip_unsupported:
+            warnings.warn(
+                f"{name}:{first}: {what} not supported; their records are skipped "
+                f"({where})",
+                stacklevel=2,
+            )
+        else:
+            raise PsseError(
+                f"{name}:{first}: {what} not supported (supported: "
+                f"{', '.join(DYR_MODELS)}); {where}; --skip-unsupported "
+                "(skip_unsupported=True) skips their records, which leaves a skipped "
+                "exciter's field voltage and a skipped governor's mechanical power "
+                "constant"
+            )
+    return out
+
+
+def _scan_dyr(path):
+    """(records, {unsupported model as written: its lines}, Toggle lines)."""
+    name = str(path)
+    _refuse_foreign(path, "dyr")
     with open(path, encoding="utf-8", errors="replace") as fh:
         lines = fh.read().splitlines()
     out: list[DyrRecord] = []
-    warned: set[str] = set()
+    unsupported: dict[str, list[int]] = {}  # model as written -> its lines
+    toggles: list[int] = []
     toks: list[str | None] = []
     quoted: list[bool] = []
     start = 0
@@ -960,16 +1167,32 @@ def read_dyr(path, skip_unsupported: bool = False) -> list[DyrRecord]:
         if not slash:
             continue
         if toks:
-            rec = _dyr_record(toks, quoted, name, start, skip_unsupported, warned)
-            if rec is not None:
+            rec = _dyr_record(toks, quoted, name, start)
+            if isinstance(rec, DyrRecord):
                 out.append(rec)
+            elif rec == "TOGGLE":
+                toggles.append(start)
+            elif rec is not None:
+                unsupported.setdefault(rec, []).append(start)
         toks, quoted = [], []
     if any(t is not None for t in toks):
         raise PsseError(f"{name}:{start}: dyr record is not ended by '/'")
-    return out
+    return out, unsupported, toggles
 
 
-def _dyr_record(toks, quoted, name, line, skip, warned):
+def unsupported_models(path) -> list[str]:
+    """The model names (upper case) of a dyr file that `DYR_MODELS` lacks, in file
+    order (ANDES's Toggle records not counted)."""
+    return [m.upper() for m in _scan_dyr(path)[1]]
+
+
+def _count(lines: list, noun: str) -> str:
+    return f"{len(lines)} {noun}{'s' if len(lines) != 1 else ''}"
+
+
+def _dyr_record(toks, quoted, name, line):
+    """The DyrRecord of one record's tokens, or the model name as written (an
+    unsupported model), or "TOGGLE" (ANDES's Toggle record)."""
     where = f"{name}:{line}"
     toks = [
         t for t in toks if t is not None
@@ -980,19 +1203,10 @@ def _dyr_record(toks, quoted, name, line, skip, warned):
         )
     written = toks[1].strip()
     model = written.upper()
+    if model == "TOGGLE":
+        return "TOGGLE"
     if model not in DYR_MODELS:
-        if skip:
-            if model not in warned:
-                warned.add(model)
-                warnings.warn(
-                    f"{where}: dyr model {written!r} is not supported; its records are skipped",
-                    stacklevel=3,
-                )
-            return None
-        raise PsseError(
-            f"{where}: dyr model {written!r} is not supported (supported: "
-            f"{', '.join(DYR_MODELS)})"
-        )
+        return written
     try:
         bus = _number(toks[0], "i")
     except ValueError:

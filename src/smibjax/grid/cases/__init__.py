@@ -2,8 +2,9 @@
 `kundur.dyr`, `kundur_nopss.dyr`, `kundur_gencls.dyr`, `kundur_synex.dyr`), the IEEE
 39-bus New England system (`ieee39.raw` with `ieee39.dyr`, `ieee39_pss.dyr`,
 `ieee39_gencls.dyr`) and the paper's SMIB with SVC (`smib.raw` with `smib.dyr`,
-`smib_gencls.dyr`). Sources, chosen values and unit conversions: README.md beside
-these files."""
+`smib_gencls.dyr`); and ANDES 2.0's public IEEE 14, WECC 179, NPCC and Nordic 44
+files (`ieee14.*`, `wecc179.*`, `npcc.*`, `nordic44.*`). Sources, licences, chosen
+values and unit conversions: README.md beside these files."""
 
 from __future__ import annotations
 

@@ -6,7 +6,10 @@ from .direct import DirectField as DirectField
 from .direct import DirectSVC as DirectSVC
 from .exst1 import EXST1 as EXST1
 from .gencls import GENCLS as GENCLS
+from .genroe import GENROE as GENROE
 from .genrou import GENROU as GENROU
+from .gensae import GENSAE as GENSAE
+from .gensal import GENSAL as GENSAL
 from .gentra import GENTRA as GENTRA
 from .ieeest import IEEEST as IEEEST
 from .ieeex1 import EXDC2 as EXDC2

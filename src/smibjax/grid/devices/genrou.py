@@ -39,11 +39,10 @@ Te = psid Iq - psiq Id = psi2q Id + psi2d Iq (= Pe + Ra |I|^2), and the swing eq
 is GENCLS's: d delta/dt = omega_b omega, 2 H d omega/dt = Pm - Te - D omega (omega the
 per-unit speed deviation; ANDES writes omega - 1 for it and M = 2H).
 
-Differences from ANDES: none in the equations. ANDES switches saturation off whenever
-S10 = 0; here the quadratic is fitted through both points (S10 = 0 < S12 saturates
-from psi2 = 1), and `saturation="exponential"` (GENROE's Se = S10 psi^n) is offered
-beside PSS/E's quadratic. X''q is not a separate dyr parameter (PSS/E's GENROU takes
-X''d for both); a different `xqpp` is refused with one line.
+Differences from ANDES: none in the equations (S10 = 0 is no saturation in both,
+PSS/E's convention). `saturation="exponential"` (Se = S10 psi^n) is PSS/E's GENROE
+(`GENROE`: this class with that fit). X''q is not a separate dyr parameter (PSS/E's
+GENROU takes X''d for both); a different `xqpp` is refused with one line.
 
 Initialisation is closed form, so it is jittable and differentiable without Newton
 steps: |E''| = |V + (Ra + j X'') I| is frame-invariant, so Se is known; at rest
@@ -120,18 +119,19 @@ class GENROU(AbstractMachine):
     state_names = ("delta", "omega", "e1q", "e1d", "e2d", "e2q")
 
     def __check_init__(self):
-        check_saturation("GENROU", self.saturation, self.S10, self.S12)
+        me = type(self).__name__  # GENROU or GENROE
+        check_saturation(me, self.saturation, self.S10, self.S12)
         names = "mbase H D Tdop Tdopp Tqop Tqopp xd xq xdp xqp xdpp xl ra".split()
         vals = {k: getattr(self, k) for k in names}
         if not is_concrete(*vals.values(), self.xqpp):
             return
         v = {k: np.asarray(a, float) for k, a in vals.items()}
         for k in names:
-            require(np.isfinite(v[k]), "GENROU", k, v[k], "must be finite")
+            require(np.isfinite(v[k]), me, k, v[k], "must be finite")
         for k in ("mbase", "H", "Tdop", "Tdopp", "Tqop", "Tqopp"):
-            require(v[k] > 0, "GENROU", k, v[k], "must be > 0")
+            require(v[k] > 0, me, k, v[k], "must be > 0")
         for k in ("D", "ra", "xl"):
-            require(v[k] >= 0, "GENROU", k, v[k], "must be >= 0")
+            require(v[k] >= 0, me, k, v[k], "must be >= 0")
         order = (
             ("xdpp", "xl", "must be >= xl = {}"),
             ("xdp", "xdpp", "must be >= xdpp = {}"),
@@ -140,14 +140,14 @@ class GENROU(AbstractMachine):
             ("xq", "xqp", "must be >= xqp = {}"),
         )
         for k, lo, allowed in order:
-            require(v[k] >= v[lo], "GENROU", k, v[k], allowed, v[lo])
+            require(v[k] >= v[lo], me, k, v[k], allowed, v[lo])
         for k in ("xdp", "xqp"):
-            require(v[k] > v["xl"], "GENROU", k, v[k], "must be > xl = {}", v["xl"])
+            require(v[k] > v["xl"], me, k, v[k], "must be > xl = {}", v["xl"])
         if self.xqpp is not None:
             q = np.asarray(self.xqpp, float)
             if not np.allclose(q, v["xdpp"], rtol=0, atol=1e-12):
                 raise ParameterError(
-                    f"GENROU.xqpp = {q} is not allowed: GENROU assumes X''q = X''d "
+                    f"{me}.xqpp = {q} is not allowed: {me} assumes X''q = X''d "
                     f"= {v['xdpp']} (PSS/E's dyr record has one X''d)"
                 )
 

@@ -15,10 +15,10 @@ Two fits:
 
       Se(psi) = S10 psi^n,  n = ln(S12 / S10) / ln(1.2).
 
-S10 = S12 = 0 is no saturation in both fits. The quadratic fit needs S10 < 1.2 S12
-(else the parabola through the two points opens on the wrong side); it accepts
-S10 = 0 < S12 (then A = 1: saturation starts at 1 pu), where ANDES switches saturation
-off instead. The exponential fit needs S10 > 0 and S12 > 0.
+S10 = 0 is no saturation at all in both fits, whatever S12 (PSS/E's convention; also
+ANDES's `ExcQuadSat` and OpenIPSL's `SE`). With S10 > 0 the quadratic fit needs
+S10 < 1.2 S12 (else the parabola through the two points opens on the wrong side) and
+the exponential fit needs S12 > 0.
 """
 
 from __future__ import annotations
@@ -41,10 +41,13 @@ SATURATION_KINDS = ("quadratic", "exponential")
 
 def quadratic_fit(s10, s12):
     """(A, B) of Se(psi) = B (psi - A)^2 / psi through Se(1.0) = s10 and Se(1.2) = s12
-    (pu). No saturation (s10 = s12 = 0) gives B = 0."""
+    (pu). No saturation (s10 = 0, PSS/E's convention, whatever s12) gives B = 0."""
     s10, s12 = jnp.asarray(s10, float), jnp.asarray(s12, float)
-    on = s12 > 0
-    a = jnp.sqrt(jnp.where(on, s10 / (1.2 * jnp.where(on, s12, 1.0)), 0.0))
+    on = (s10 > 0) & (s12 > 0)
+    # the inner where keeps sqrt away from 0 where off (a finite gradient in S10)
+    a = jnp.where(
+        on, jnp.sqrt(jnp.where(on, s10 / (1.2 * jnp.where(on, s12, 1.0)), 1.0)), 0.0
+    )
     big_a = 1.2 - 0.2 / (1.0 - a)
     big_b = jnp.where(on, 1.2 * s12 * (1.0 - a) ** 2 / 0.04, 0.0)
     return big_a, big_b
@@ -96,13 +99,13 @@ def check_saturation(owner: str, kind: str, s10, s12) -> None:
             raise ParameterError(
                 f"{owner}.{name} = {_fmt(v)} is not allowed: must be finite and >= 0"
             )
-    off = (s10 == 0) & (s12 == 0)
+    off = s10 == 0  # no saturation (PSS/E), whatever S12
     if kind == "quadratic":
         ok = off | (s10 < 1.2 * s12)
-        allowed = "the quadratic fit needs S10 < 1.2 S12 (or S10 = S12 = 0)"
+        allowed = "the quadratic fit needs S10 < 1.2 S12 (or S10 = 0: none)"
     else:
-        ok = off | ((s10 > 0) & (s12 > 0))
-        allowed = "the exponential fit needs S10 > 0 and S12 > 0 (or both 0)"
+        ok = off | (s12 > 0)
+        allowed = "the exponential fit needs S12 > 0 where S10 > 0 (S10 = 0: none)"
     if not np.all(ok):
         raise ParameterError(
             f"{owner}.S10, S12 = {_fmt(s10)}, {_fmt(s12)} are not allowed: {allowed}"
