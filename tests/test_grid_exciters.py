@@ -215,7 +215,17 @@ def test_ieeevc_and_esst3a_references_are_their_closed_forms(kundur):
     kp = 3.67 * np.exp(1j * np.deg2rad(3.33))
     ve = abs(kp * v + 1j * (0.435 + kp * 0.0098) * i)
     efd0 = float(op.held[0]["Efd"][g])
-    vb = ve * float(fex(0.01 * efd0 / ve))
+    i_n = 0.01 * efd0 / ve  # IEEE 421.5's FEX, written out independently
+    f = np.piecewise(
+        i_n,
+        [i_n <= 0.433, (i_n > 0.433) & (i_n <= 0.75), i_n > 0.75],
+        [
+            lambda x: 1 - 0.577 * x,
+            lambda x: np.sqrt(0.75 - x**2),
+            lambda x: 1.732 * (1 - x),
+        ],
+    )
+    vb = ve * float(f)
     vr0 = efd0 / vb / 8.0 + 1.0 * efd0
     k = [type(c).__name__ for c in case.controllers].index("ESST3A")
     vref = float(np.asarray(op.refs[k]).ravel()[0])
@@ -442,6 +452,36 @@ def test_ieeet2_regulator_limit_holds_the_state():
     want = 4.0 + (2.0 - 4.0) * np.exp(-ts / 0.5)
     np.testing.assert_allclose(out[:, 0], want, rtol=0.03)
     assert np.all(out[:, 0] < want + 1e-12)
+
+
+def test_fex_is_continuous_at_its_breakpoints_and_matches_ieee_421_5():
+    """FEX(IN) at and around IN = 0, 0.433, 0.75, 1: the IEEE 421.5 values, and no
+    jump larger than the slope allows (the standard's constants meet to 1e-3)."""
+    pts = np.array([-0.1, 0.0, 0.2, 0.433, 0.6, 0.75, 0.9, 1.0, 1.2])
+    want = [1.0, 1.0, 1 - 0.577 * 0.2, 1 - 0.577 * 0.433, np.sqrt(0.75 - 0.36)]
+    want += [np.sqrt(0.75 - 0.75**2), 1.732 * 0.1, 0.0, 0.0]
+    np.testing.assert_allclose(fex(jnp.asarray(pts)), want, rtol=1e-12, atol=1e-12)
+    for b in (0.433, 0.75, 1.0):
+        lo, hi = fex(jnp.asarray([b - 1e-9, b + 1e-9]))
+        assert abs(float(hi - lo)) < 1e-3
+
+
+def test_esdc2a_ceiling_moves_with_the_terminal_voltage():
+    """A regulator state above its ceiling: VR = VRMAX Vt (DC2A's bus-fed
+    regulator), so TE dEfd/dt = VRMAX Vt - KE Efd - SE(Efd) Efd, at Vt = 0.9 and
+    1.0; EXDC2's diagram, PSS/E's initialization."""
+    p = dict(
+        zip(ESDC2A.con_names, [0.0, 50, 0.05, 0, 0, 5.0, -3.0, 1.0, 0.5], strict=False)
+    )
+    p.update(KF=0.0, TF1=1.0, SWITCH=0.0, E1=3.0, SE1=0.1, E2=4.0, SE2=0.3)
+    dev = ESDC2A.from_params([0, 1], [p, p])
+    vt = jnp.array([0.9, 1.0])
+    meas = {"Vt": vt, "Vs": jnp.zeros(2)}
+    x0, ref = dev.init(jnp.full(2, 2.0), meas)
+    x = x0.at[2].set(100.0)
+    defd = dev.rhs(x, meas, ref)[3]
+    se_efd = 2.0 * dev.se(jnp.full(2, 2.0))
+    np.testing.assert_allclose(defd * 0.5, 5.0 * vt - 1.0 * 2.0 - se_efd, rtol=1e-12)
 
 
 # ---------------------------------------------------------------------------
