@@ -331,9 +331,10 @@ def test_every_controller_reads_only_what_the_loop_supplies():
     at initialization)."""
     from smibjax.grid import devices
     from smibjax.grid.devices.base import AbstractController
-    from smibjax.grid.loop import MEASUREMENTS
+    from smibjax.grid.loop import MEASUREMENTS, PHASORS
 
-    supplied = set(MEASUREMENTS) | {"Vs", "Efd_cmd"}
+    # the loop adds the terminal phasors and the compensated voltage Vc itself
+    supplied = set(MEASUREMENTS) | set(PHASORS) | {"Vs", "Vc", "Efd_cmd"}
     classes = [
         c
         for c in vars(devices).values()

@@ -44,6 +44,9 @@ BUILTIN = {
 MACHINES = ("GENCLS", "GENTRA", "GENROU")
 MACHINES += ("GENROE", "GENSAL", "GENSAE")  # issue 45
 EXCITERS = ("SEXS", "IEEEX1", "EXDC2", "EXST1", "SYNEX")
+# issue 45: more PSS/E exciters, and the load compensator IEEEVC (it writes the
+# voltage the exciter regulates; grouped here as part of the excitation system)
+EXCITERS += ("ESST3A", "ESDC2A", "SCRX", "IEEET2", "IEEEVC")
 STABILIZERS = ("IEEEST", "STAB1")
 GOVERNORS = ("TGOV1",)
 SVCS = ("CSVGN1",)

@@ -8,7 +8,9 @@ Evaluation order in the vector field, per right-hand-side call:
    over all generators, by generator position;
 4. stabilizers (write "Vs"), then exciters (read "Vt", "Vs"; write "Efd"), then
    governors (read "omega"; write "Pm"): each controller group gathers its inputs at
-   its generators' positions and scatters its command back;
+   its generators' positions and scatters its command back; load/line-drop
+   compensators (write "Vc", the voltage the exciters regulate; Vt where there is
+   none) come first;
 5. the machines' and controllers' derivatives; the SVCs' from their bus voltages.
 Commands no controller writes stay at their operating-point values (`held`).
 """
@@ -27,10 +29,35 @@ from .devices.base import AbstractController, AbstractMachine, AbstractShuntDevi
 from .network import Grid, StageMatrices, solve_ports
 from .system import System
 
-__all__ = ["Case", "Operating", "initialize", "vector_field", "MEASUREMENTS"]
+__all__ = [
+    "Case",
+    "Operating",
+    "initialize",
+    "vector_field",
+    "MEASUREMENTS",
+    "PHASORS",
+    "terminal_phasors",
+]
 
 MEASUREMENTS = ("delta", "omega", "Pe", "Qe", "Vt", "It", "Te", "XadIfd")
-_ORDER = {"Vs": 0, "Efd": 1, "Pm": 2}
+# the terminal phasors, computed here for every machine model from its Norton form
+# (`terminal_phasors`): voltage (pu) and current out of the terminal (pu, machine
+# base), real and imaginary parts in the network frame
+PHASORS = ("Vt_re", "Vt_im", "It_re", "It_im")
+_ORDER = {"Vc": -1, "Vs": 0, "Efd": 1, "Pm": 2}
+
+
+def terminal_phasors(m, i_n, y, vt, s_base):
+    """The terminal voltage vt (pu) and the current out of the terminal of machine
+    group `m`, (i_n - y vt) s_base / mbase (pu, machine base), from its Norton source
+    i_n and admittance y (system base), as the measurements of `PHASORS`."""
+    it = (i_n - y * vt) * (s_base / m.mbase)
+    return {
+        "Vt_re": jnp.real(vt),
+        "Vt_im": jnp.imag(vt),
+        "It_re": jnp.real(it),
+        "It_im": jnp.imag(it),
+    }
 
 
 @dataclasses.dataclass(frozen=True)
@@ -147,31 +174,42 @@ def initialize(case: Case, vm, va, p_gen, q_gen) -> Operating:
     s_gen = p_gen + 1j * q_gen
     gen_y = jnp.zeros(n_gen, dtype=jnp.complex128)
     held, blocks = [], []
-    meas = {k: jnp.zeros(n_gen) for k in MEASUREMENTS}
+    meas = {k: jnp.zeros(n_gen) for k in MEASUREMENTS + PHASORS}
     cmd = {"Efd": jnp.zeros(n_gen), "Pm": jnp.zeros(n_gen), "Vs": jnp.zeros(n_gen)}
     for m, gt in zip(case.machines, lay.machine_gen, strict=True):
         g = np.asarray(gt, dtype=np.int64)
         x0, h = m.init(v[gbus[g]], s_gen[g], s_base)
-        _, y = m.norton(x0, h, s_base)
+        i_n, y = m.norton(x0, h, s_base)
         gen_y = gen_y.at[g].set(y)
         held.append(h)
         blocks.append(x0)
-        for k, val in m.measure(x0, v[gbus[g]], h, s_base).items():
+        ms = m.measure(x0, v[gbus[g]], h, s_base)
+        ms |= terminal_phasors(m, i_n, y, v[gbus[g]], s_base)
+        for k, val in ms.items():
             if k in meas:
                 meas[k] = meas[k].at[g].set(val)
         for k in ("Efd", "Pm"):
             cmd[k] = cmd[k].at[g].set(h[k])
-    refs = []
-    ctrl_blocks = []
-    for c, gt in zip(case.controllers, lay.controller_gen, strict=True):
+    cmd["Vc"] = meas["Vt"]
+    refs = [None] * len(case.controllers)
+    ctrl_blocks = [None] * len(case.controllers)
+    # in evaluation order: a compensator's Vc0 reaches the exciters' init
+    for i in sorted(
+        range(len(case.controllers)),
+        key=lambda i: _ORDER.get(case.controllers[i].output, 3),
+    ):
+        c, gt = case.controllers[i], lay.controller_gen[i]
         g = np.asarray(gt, dtype=np.int64)
         local = {k: meas[k][g] for k in meas} | {
             "Vs": cmd["Vs"][g],
+            "Vc": cmd["Vc"][g],
             "Efd_cmd": jnp.zeros(len(g)),
         }
         x0, ref = c.init(cmd[c.output][g], local)
-        refs.append(ref)
-        ctrl_blocks.append(x0)
+        if c.output == "Vc":
+            cmd["Vc"] = cmd["Vc"].at[g].set(c.out(x0, local, ref))
+        refs[i] = ref
+        ctrl_blocks[i] = x0
     svc_refs, svc_blocks = [], []
     for s, bt in zip(case.svcs, lay.svc_bus, strict=True):
         b = np.asarray(bt, dtype=np.int64)
@@ -257,9 +295,11 @@ def evaluate(case: Case, op: Operating, mats: StageMatrices, stage, y, u=None):
     gst = mats.gen_status[stage]
     n_port = len(lay.ports)
     i_p = jnp.zeros(n_port, dtype=jnp.complex128)
+    nortons = []
     for k, (m, x, h) in enumerate(zip(case.machines, xm, op.held, strict=True)):
         g = np.asarray(lay.machine_gen[k], dtype=np.int64)
-        i_n, _ = m.norton(x, h, s_base)
+        i_n, y_n = m.norton(x, h, s_base)
+        nortons.append((i_n, y_n))
         pidx = np.asarray(lay.machine_port[k], dtype=np.int64)
         i_p = i_p.at[pidx].add(i_n * gst[g])
     y_sh = None
@@ -270,18 +310,23 @@ def evaluate(case: Case, op: Operating, mats: StageMatrices, stage, y, u=None):
             y_sh = y_sh.at[pidx].add(s.admittance(x, s_base))
     v_p = solve_ports(A, c, i_p, y_sh)
     n_gen = case.n_gen
-    meas = {k: jnp.zeros(n_gen) for k in MEASUREMENTS}
+    meas = {k: jnp.zeros(n_gen) for k in MEASUREMENTS + PHASORS}
     vgen = []
     for k, (m, x, h) in enumerate(zip(case.machines, xm, op.held, strict=True)):
         g = np.asarray(lay.machine_gen[k], dtype=np.int64)
         vt = v_p[np.asarray(lay.machine_port[k], dtype=np.int64)]
         vgen.append(vt)
         on = gst[g]
-        for k, val in m.measure(x, vt, h, s_base).items():
+        ms = m.measure(x, vt, h, s_base)
+        ms |= terminal_phasors(m, *nortons[k], vt, s_base)
+        for k, val in ms.items():
             if k in meas:
-                val = val * on if k in ("Pe", "Qe", "It", "Te") else val
+                val = (
+                    val * on if k in ("Pe", "Qe", "It", "Te", "It_re", "It_im") else val
+                )
                 meas[k] = meas[k].at[g].set(val)
     cmd = {"Vs": jnp.zeros(n_gen), "Efd": jnp.zeros(n_gen), "Pm": jnp.zeros(n_gen)}
+    cmd["Vc"] = meas["Vt"]
     for gt, h in zip(lay.machine_gen, op.held, strict=True):
         g = np.asarray(gt, dtype=np.int64)
         for k in ("Efd", "Pm"):
@@ -296,7 +341,11 @@ def evaluate(case: Case, op: Operating, mats: StageMatrices, stage, y, u=None):
         g = np.asarray(lay.controller_gen[i], dtype=np.int64)
         vs = cmd["Vs"][g] + (u["Vs"][g] if "Vs" in u else 0.0)
         efd_cmd = u["Efd_cmd"][g] if "Efd_cmd" in u else jnp.zeros(len(g))
-        local = {k: meas[k][g] for k in meas} | {"Vs": vs, "Efd_cmd": efd_cmd}
+        local = {k: meas[k][g] for k in meas} | {
+            "Vs": vs,
+            "Vc": cmd["Vc"][g],
+            "Efd_cmd": efd_cmd,
+        }
         cmd[ctl.output] = cmd[ctl.output].at[g].set(ctl.out(x, local, ref))
         dctrl[i] = ctl.rhs(x, local, ref)
     dm = []

@@ -1033,6 +1033,52 @@ DYR_MODELS: dict[str, tuple[str, ...]] = {
     "STAB1": ("K_T", "T", "T1_T3", "T3", "T2_T4", "T4", "HLIM"),
     "TGOV1": ("R", "T1", "VMAX", "VMIN", "T2", "T3", "Dt"),
     "CSVGN1": ("K", "T1", "T2", "T3", "T4", "T5", "RMIN", "VMAX", "VMIN", "CBASE"),
+    # --- exciters and the compensator IEEEVC (issue 45; devices/esst3a.py,
+    # esdc2a.py, scrx.py, ieeet2.py, ieeevc.py). Source: PSS/E Model Library; the
+    # same order as ANDES 2.0's psse-dyr.yaml and OpenIPSL's PSSE library
+    "ESST3A": (
+        "TR",
+        "VIMAX",
+        "VIMIN",
+        "KM",
+        "TC",
+        "TB",
+        "KA",
+        "TA",
+        "VRMAX",
+        "VRMIN",
+        "KG",
+        "KP",
+        "KI",
+        "VBMAX",
+        "KC",
+        "XL",
+        "VGMAX",
+        "THETAP",
+        "TM",
+        "VMMAX",
+        "VMMIN",
+    ),
+    "ESDC2A": _DC_EXCITER,
+    "SCRX": ("TA_TB", "TB", "K", "TE", "EMIN", "EMAX", "CSWITCH", "rc_rfd"),
+    "IEEET2": (
+        "TR",
+        "KA",
+        "TA",
+        "VRMAX",
+        "VRMIN",
+        "KE",
+        "TE",
+        "KF",
+        "TF1",
+        "TF2",
+        "E1",
+        "SE1",
+        "E2",
+        "SE2",
+    ),
+    "IEEEVC": ("RC", "XC"),
+    # --- end of the issue-45 exciters
     # smibjax-specific, not a PSS/E model: the paper's synergetic excitation law on
     # a local SMIB equivalent (devices/synex.py)
     "SYNEX": (
@@ -1078,9 +1124,17 @@ DYR_KINDS: dict[str, str] = {
     "IEEEST": "pss",
     "STAB1": "pss",
     "TGOV1": "governor",
+    # --- issue-45 exciters and the compensator
+    "ESST3A": "exciter",
+    "ESDC2A": "exciter",
+    "SCRX": "exciter",
+    "IEEET2": "exciter",
+    "IEEEVC": "compensator",  # in front of the exciter: changes what it regulates
+    # --- end of the issue-45 exciters
 }
 """What each dyr model is to its generator: a machine (one per generator in service),
-or an exciter, a stabilizer (pss) or a governor (at most one each, with a machine)."""
+or an exciter, a load compensator, a stabilizer (pss) or a governor (at most one
+each, with a machine)."""
 
 
 @dataclass(frozen=True)

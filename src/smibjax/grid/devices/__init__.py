@@ -18,3 +18,11 @@ from .sexs import SEXS as SEXS
 from .stab1 import STAB1 as STAB1
 from .synex import SYNEX as SYNEX
 from .tgov1 import TGOV1 as TGOV1
+
+# isort: split
+# issue 45: exciters and the load compensator
+from .esdc2a import ESDC2A as ESDC2A
+from .esst3a import ESST3A as ESST3A
+from .ieeet2 import IEEET2 as IEEET2
+from .ieeevc import IEEEVC as IEEEVC
+from .scrx import SCRX as SCRX

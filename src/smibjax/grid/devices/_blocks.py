@@ -34,6 +34,8 @@ __all__ = [
     "second_order_leadlag",
     "build_group",
     "check",
+    "regulated",
+    "fex",
 ]
 
 
@@ -140,6 +142,36 @@ def second_order_leadlag(x1, x2, u, a3, a4, a5, a6):
     dx1 = jnp.where(second, x2, jnp.where(first, dfirst, 0.0))
     dx2 = jnp.where(second, ddx, 0.0)
     return y, dx1, dx2
+
+
+def regulated(meas):
+    """The voltage an exciter regulates (pu): the compensated voltage "Vc" of a
+    load/line-drop compensator (IEEEVC) where the closed loop provides one, else
+    the terminal voltage "Vt"."""
+    return meas["Vc"] if "Vc" in meas else meas["Vt"]
+
+
+def fex(i_n):
+    """FEX(IN): the rectifier regulation function of IEEE 421.5 (PSS/E's AC and
+    ST3A/ST4B exciters), the ratio of a rectifier's output voltage to its open-
+    circuit voltage for the commutating load IN = KC Ifd / VE (pu/pu):
+
+        IN <= 0: 1;  IN <= 0.433: 1 - 0.577 IN;  IN <= 0.75: sqrt(0.75 - IN^2);
+        IN <= 1: 1.732 (1 - IN);  IN > 1: 0.
+
+    Continuous in IN; the square root's argument is guarded for the gradient."""
+    mid = jnp.sqrt(jnp.maximum(0.75 - jnp.clip(i_n, 0.433, 0.75) ** 2, 1e-12))
+    return jnp.where(
+        i_n <= 0.0,
+        1.0,
+        jnp.where(
+            i_n <= 0.433,
+            1.0 - 0.577 * i_n,
+            jnp.where(
+                i_n <= 0.75, mid, jnp.where(i_n <= 1.0, 1.732 * (1.0 - i_n), 0.0)
+            ),
+        ),
+    )
 
 
 def check(obj, rules) -> None:

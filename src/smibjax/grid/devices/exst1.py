@@ -44,6 +44,7 @@ from ._blocks import (
     ordered,
     positive,
     proper,
+    regulated,
     require_at_rest,
     v,
     washout,
@@ -114,15 +115,15 @@ class EXST1(AbstractController):
             "the operating point needs Efd0 within [VRMIN - KC XadIfd, VRMAX - KC "
             "XadIfd] and Efd0/KA within [VIMIN, VIMAX]",
         )
-        ref = meas["Vt"] - meas["Vs"] + vi0
+        ref = regulated(meas) - meas["Vs"] + vi0
         zero = 0.0 * y0
-        vt = meas["Vt"] + zero
+        vt = regulated(meas) + zero
         vi0 = ref - vt - zero + meas["Vs"]  # as rhs computes it
         efd0 = self.KA * vi0
         return jnp.stack([vt, vi0, efd0, efd0]), ref
 
     def _f(self, x, meas, ref):
-        vm, dvm = lag(x[0], meas["Vt"], 1.0, self.TR)
+        vm, dvm = lag(x[0], regulated(meas), 1.0, self.TR)
         vf, dxf = washout(x[3], x[2], self.KF, self.TF)
         vi = jnp.clip(ref - vm - vf + meas["Vs"], self.VIMIN, self.VIMAX)
         y, dll = leadlag(x[1], vi, self.TC, self.TB)

@@ -63,6 +63,7 @@ from ._blocks import (
     ordered,
     positive,
     proper,
+    regulated,
     require_at_rest,
     v,
     washout,
@@ -128,6 +129,7 @@ class _DCExciter(AbstractController):
     state_names = ("Vm", "x_ll", "VR", "Efd", "x_f")
     con_names = CONS
     vt_limits: ClassVar[bool] = False
+    ref_limits: ClassVar[bool] = False  # ref carries KE, VRMAX, VRMIN in force
 
     def __check_init__(self):
         if self.saturation not in ("quadratic", "exponential"):
@@ -192,15 +194,26 @@ class _DCExciter(AbstractController):
             return B * jnp.maximum(efd - A, 0.0) ** 2
         return A * jnp.exp(B * efd) * efd
 
-    def _limits(self, meas):
+    def _limits(self, meas, ref):
+        if self.ref_limits:  # the limits in force, from `init` (ESDC2A)
+            lo, hi = ref[3], ref[2]
+        else:
+            lo, hi = self.VRMIN, self.VRMAX
         if self.vt_limits:
-            return self.VRMIN * meas["Vt"], self.VRMAX * meas["Vt"]
-        return self.VRMIN, self.VRMAX
+            return lo * meas["Vt"], hi * meas["Vt"]
+        return lo, hi
+
+    def _constants(self, y0):
+        """(KE, VRMAX, VRMIN) in force: KE = 0 becomes -SE(Efd0) (VR0 = 0)."""
+        ke = jnp.where(self.KE == 0, -self.se(y0), self.KE)
+        return ke, self.VRMAX + 0.0 * y0, self.VRMIN + 0.0 * y0
 
     def init(self, y0, meas):
-        ke = jnp.where(self.KE == 0, -self.se(y0), self.KE)
+        ke, vrmax, vrmin = self._constants(y0)
         vr0 = ke * y0 + self._se_efd(y0)
-        lo, hi = self._limits(meas)
+        zero = 0.0 * y0
+        consts = jnp.stack([ke + zero, vrmax + zero, vrmin + zero])
+        lo, hi = self._limits(meas, jnp.concatenate([zero[None], consts]))
         require_at_rest(
             (vr0 >= lo) & (vr0 <= hi),
             type(self).__name__,
@@ -208,19 +221,20 @@ class _DCExciter(AbstractController):
             vr0,
             "the regulator output at the operating point must lie within its limits",
         )
-        vref = meas["Vt"] - meas["Vs"] + vr0 / self.KA
-        zero = 0.0 * y0
-        vt = meas["Vt"] + zero
+        vref = regulated(meas) - meas["Vs"] + vr0 / self.KA
+        vt = regulated(meas) + zero
         y_ll = vref - vt - zero + meas["Vs"]  # as rhs computes it
         x0 = jnp.stack([vt, y_ll, self.KA * y_ll, y0 + zero, y0 + zero])
+        if self.ref_limits:
+            return x0, jnp.concatenate([vref[None], consts])
         return x0, jnp.stack([vref, ke + zero])
 
     def _f(self, x, meas, ref):
-        vm, dvm = lag(x[0], meas["Vt"], 1.0, self.TR)
+        vm, dvm = lag(x[0], regulated(meas), 1.0, self.TR)
         vf, dxf = washout(x[4], x[3], self.KF, self.TF1)
         vi = ref[0] - vm - vf + meas["Vs"]
         y, dll = leadlag(x[1], vi, self.TC, self.TB)
-        lo, hi = self._limits(meas)
+        lo, hi = self._limits(meas, ref)
         vr, dvr = lag_nonwindup(
             x[2], y, self.KA, self.TA, lo, hi, moving=self.vt_limits
         )

@@ -31,6 +31,7 @@ from ._blocks import (
     leadlag,
     nonneg,
     ordered,
+    regulated,
     require_at_rest,
     v,
 )
@@ -68,7 +69,7 @@ class SEXS(AbstractController):
         return build_group(cls, gen_positions, params, cls.con_names)
 
     def _chain(self, x, meas, ref):
-        vi = ref - meas["Vt"] + meas["Vs"]
+        vi = ref - regulated(meas) + meas["Vs"]
         y1, dx1 = leadlag(x[0], vi, self.TA_TB * self.TB, self.TB)
         efd, dx2 = lag_nonwindup(x[1], y1, self.K, self.TE, self.EMIN, self.EMAX)
         return efd, jnp.stack([dx1, dx2])
@@ -81,8 +82,10 @@ class SEXS(AbstractController):
             y0,
             "the operating point's field voltage must lie within [EMIN, EMAX]",
         )
-        ref = meas["Vt"] - meas["Vs"] + y0 / self.K
-        vi0 = ref - meas["Vt"] + meas["Vs"]  # as rhs computes it: dx/dt = 0 exactly
+        ref = regulated(meas) - meas["Vs"] + y0 / self.K
+        vi0 = (
+            ref - regulated(meas) + meas["Vs"]
+        )  # as rhs computes it: dx/dt = 0 exactly
         return jnp.stack([vi0, self.K * vi0]), ref
 
     def rhs(self, x, meas, ref):
