@@ -381,42 +381,61 @@ def run_simulate(args) -> int:
     return 0
 
 
-def plot_case(a: dict, ev, case, path) -> None:
-    """Every machine's COI angle, speed, field voltage and electrical power, and the
-    bus voltages, with the event times marked."""
-    from .._figures import save_figure, subplots
+def event_marks(case, ev) -> list[tuple[float, str]]:
+    """The switchings of `ev` as (t (s), text) for a figure, buses and lines by
+    their PSS/E numbers, generators by bus:id; switchings at one instant share one
+    entry (a line fault cleared by opening its line: "clear: open 7-8 at 1.1 s")."""
+    from ..grid.events import BranchClose, BranchTrip, BusFault, GenTrip, LineFault
+    from ..grid.loop import gen_names
 
-    fig, axs = subplots(3, 2, figsize=(12, 9), sharex=True)
-    t = a["t"]
-    panels = [
-        ("delta_coi", "angle - COI (rad)"),
-        ("omega", "speed deviation (pu)"),
-        ("efd", "field voltage Efd (pu)"),
-        ("pe", "electrical power (pu machine base)"),
-        ("vt", "terminal voltage (pu)"),
-    ]
-    for ax, (key, label) in zip(axs.flat, panels, strict=False):
-        for i, g in enumerate(a["gen"]):
-            ax.plot(t, a[key][:, i], lw=1, label=f"G {g}")
-        ax.set_ylabel(label)
-        ax.grid(alpha=0.3)
-    ax = axs.flat[5]
-    vb = a["v_bus"]
-    ax.fill_between(
-        t, np.nanmin(vb, axis=1), np.nanmax(vb, axis=1), alpha=0.3, label="range"
+    num = np.asarray(case.system.buses.number)
+    br = case.system.branches
+
+    def line(k):
+        return f"{num[br.fr[int(k)]]}-{num[br.to[int(k)]]}"
+
+    marks: list[tuple[float, str]] = []
+    for e in ev:
+        if isinstance(e, BusFault):
+            marks += [
+                (float(e.t_on), f"fault at bus {num[int(e.bus)]}"),
+                (float(e.t_off), f"clear: fault at bus {num[int(e.bus)]} removed"),
+            ]
+        elif isinstance(e, LineFault):
+            marks += [
+                (float(e.t_on), f"fault on {line(e.branch)} at {float(e.frac):g}"),
+                (float(e.t_off), "clear: fault removed"),
+            ]
+        elif isinstance(e, BranchTrip):
+            marks.append((float(e.t), f"open {line(e.branch)}"))
+        elif isinstance(e, BranchClose):
+            marks.append((float(e.t), f"reclose {line(e.branch)}"))
+        elif isinstance(e, GenTrip):
+            marks.append((float(e.t), f"trip G {gen_names(case)[int(e.gen)]}"))
+    merged: dict[float, list[str]] = {}
+    for t, text in sorted(marks, key=lambda m: m[0]):
+        merged.setdefault(round(t, 9), []).append(text)
+    out = []
+    for t, texts in merged.items():
+        if texts[0] == "clear: fault removed" and len(texts) > 1:
+            texts = ["clear: " + texts[1], *texts[2:]]
+        out.append((t, "; ".join(texts) + f" at {t:g} s"))
+    return out
+
+
+def plot_case(a: dict, ev, case, path) -> None:
+    """`plotting.plot_grid_run` of a `simulate --case` run: the machines with the
+    largest swings named, the others a band, the events labelled, the buses of the
+    voltage panel named by PSS/E number and name."""
+    from .plotting import plot_grid_run
+
+    plot_grid_run(
+        a,
+        path,
+        f"{case.name}: {_event_text(case, ev)}",
+        events=event_marks(case, ev),
+        bus_names=list(case.system.buses.name) or None,
     )
-    ax.plot(t, np.nanmin(vb, axis=1), lw=1, label="lowest bus")
-    ax.set_ylabel("bus voltages (pu)")
-    ax.grid(alpha=0.3)
-    times = sorted({float(s) for e in ev for s in e.switches()})
-    for ax in axs.flat:
-        for s in times:
-            ax.axvline(s, color="k", lw=0.6, ls=":")
-    for ax in axs[-1]:
-        ax.set_xlabel("t (s)")
-    axs.flat[0].legend(fontsize=7, ncol=2)
-    fig.suptitle(f"{case.name}: {_event_text(case, ev)}", fontsize=10)
-    save_figure(fig, path)
 
 
 def _grid_distribution(case, args):
