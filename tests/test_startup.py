@@ -315,3 +315,83 @@ def _damaged_stored_program_falls_back_silently(cache: Path, cwd: Path, out) -> 
     assert _simulate_child([*out, "bad.npz"], cache, cwd)[0] == "traced"
     _same_bits(cwd / "b.npz", cwd / "cut.npz")
     _same_bits(cwd / "b.npz", cwd / "bad.npz")
+
+
+@pytest.mark.parametrize(
+    "argv, needle",
+    [
+        (
+            ["simulate", "--case", "no/such.raw", "--dyr", "x.dyr", "--fault-bus", "1"],
+            "--case 'no/such.raw': no such file",
+        ),
+        (
+            [
+                "simulate",
+                "--case",
+                "README.md",
+                "--dyr",
+                "README.md",
+                "--fault-bus",
+                "1",
+            ],
+            "not a PSS/E raw file",
+        ),
+        (
+            [
+                "modes",
+                "--case",
+                "src/smibjax/grid/cases/kundur.raw",
+                "--dyr",
+                "README.md",
+            ],
+            "not a PSS/E dyr file",
+        ),
+        (
+            [
+                "cct",
+                "--case",
+                "src/smibjax/grid/cases/kundur.raw",
+                "--dyr",
+                "docs/figures",
+            ],
+            "must be a PSS/E dyr file (a file)",
+        ),
+        (["simulate", "--out", "run.txt"], "the suffix must be one of .npz"),
+        (["simulate", "--case", "kundur", "--out", "r.xlsx"], "suffix must be one"),
+    ],
+)
+def test_bad_files_and_outputs_are_refused_before_jax_loads(argv, needle):
+    """A nonexistent or foreign --case/--dyr file and an --out of no known format
+    are one line, exit 2, before JAX, equinox or matplotlib load (they took 12-37 s
+    of start-up before the refusal, issue 50)."""
+    code = (
+        "import sys\nfrom smibjax.cli import main\n"
+        f"rc = main({argv!r})\nprint('RC:', rc)"
+    )
+    env = {**os.environ, "PYTHONPATH": f"{ROOT / 'src'}:{ROOT}"}
+    probe = code + (
+        f"\nprint('LOADED:' + ','.join(m for m in {HEAVY!r} if m in sys.modules))"
+    )
+    r = subprocess.run(
+        [sys.executable, "-c", probe], capture_output=True, text=True, cwd=ROOT, env=env
+    )
+    out = r.stdout.strip().splitlines()
+    assert out[-2] == "RC: 2" and out[-1] == "LOADED:", r.stdout + r.stderr
+    err = r.stderr.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("smibjax: error: "), r.stderr
+    assert needle in err[0]
+
+
+def test_the_built_in_and_andes_case_files_pass_the_early_check():
+    """The jax-free look at a raw/dyr file accepts every case file smibjax ships."""
+    import argparse
+
+    from smibjax.cli.grid import precheck_case
+
+    cases = ROOT / "src" / "smibjax" / "grid" / "cases"
+    raws = sorted(cases.glob("*.raw"))
+    assert raws
+    for raw in raws:
+        for dyr in sorted(cases.glob("*.dyr")):
+            precheck_case(argparse.Namespace(case=str(raw), dyr=str(dyr)))
+    precheck_case(argparse.Namespace(case="kundur", dyr=None))  # a built-in name

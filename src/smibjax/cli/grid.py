@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 import sys
 import time
 from pathlib import Path
@@ -20,7 +21,14 @@ import numpy as np
 
 from .options import CLIError
 
-__all__ = ["add_case_options", "run_simulate", "run_montecarlo", "run_cct", "load"]
+__all__ = [
+    "add_case_options",
+    "precheck_case",
+    "run_simulate",
+    "run_montecarlo",
+    "run_cct",
+    "load",
+]
 
 # the largest Monte Carlo chunk of a --case run: a chunk keeps every scenario's saved
 # states (IEEE 39 at 1,001 samples: 1 MB each); the CPU time per scenario does not
@@ -41,6 +49,70 @@ def load_case_reporting(name_or_raw, dyr=None, skip_unsupported=False):
     for w in caught:
         print(f"smibjax: warning: {w.message}", file=sys.stderr)
     return case
+
+
+_SNIFF_BYTES = 1 << 16
+
+
+def _text_head(path: Path, flag: str, kind: str) -> list[str]:
+    """The first lines of a file that must exist and be text (no NUL byte in its
+    first 64 KiB); CLIError (one line) otherwise."""
+    if not path.exists():
+        raise CLIError(f"{flag} {str(path)!r}: no such file")
+    if not path.is_file():
+        raise CLIError(
+            f"{flag} {str(path)!r} is not allowed: must be a {kind} (a file)"
+        )
+    with open(path, "rb") as fh:
+        head = fh.read(_SNIFF_BYTES)
+    if b"\x00" in head:
+        raise CLIError(
+            f"{flag} {str(path)!r} is not allowed: must be a {kind} (this is a binary "
+            "file)"
+        )
+    return head.decode("utf-8", errors="replace").splitlines()
+
+
+def _looks_like_raw(lines: list[str]) -> bool:
+    """The first line is a PSS/E case identification: IC (0 or 1), SBASE (a number)
+    and REV (an integer), comma- or blank-separated, before any '/' comment."""
+    if not lines:
+        return False
+    fields = [f for f in re.split(r"[,\s]+", lines[0].split("/")[0].strip()) if f]
+    try:
+        ic, rev = int(fields[0]), int(fields[2])
+        float(fields[1])
+    except (IndexError, ValueError):
+        return False
+    return ic in (0, 1) and rev > 0
+
+
+_DYR_RECORD = re.compile(r"^\s*\d+\s*[,\s]\s*'[^']+'")
+
+
+def precheck_case(args) -> None:
+    """Refuse a --case or --dyr file that does not exist or is not what it should
+    be (a PSS/E raw file, a dyr file) in one line, before JAX is imported (the full
+    reader, with every record checked, runs after). A --case that is not a file
+    name (no .raw suffix, no such path) is left to the case loader (built-in
+    names)."""
+    case, dyr = getattr(args, "case", None), getattr(args, "dyr", None)
+    if not case:
+        return
+    p = Path(case)
+    if p.suffix.lower() == ".raw" or p.exists() or dyr:
+        if not _looks_like_raw(_text_head(p, "--case", "PSS/E raw file")):
+            raise CLIError(
+                f"--case {str(p)!r} is not allowed: not a PSS/E raw file (its first "
+                "line is not a case identification IC, SBASE, REV, ...)"
+            )
+    if dyr:
+        lines = _text_head(Path(dyr), "--dyr", "PSS/E dyr file")
+        if not any(_DYR_RECORD.match(line) for line in lines[:400]):
+            raise CLIError(
+                f"--dyr {str(dyr)!r} is not allowed: not a PSS/E dyr file (no record "
+                "BUS 'MODEL' ... in its first lines)"
+            )
 
 
 def add_case_options(p, events: bool = True) -> None:
@@ -242,6 +314,41 @@ def _gen_position(case, spec: str) -> int:
     return names.index(name)
 
 
+def _size(case) -> str:
+    """ "npcc (48 machines, 140 buses)"."""
+    return f"{case.name} ({case.n_gen} machines, {case.system.n_bus} buses)"
+
+
+COMPILE_S = (20.0, 0.5)
+"""A first compile of a case's simulation takes about a + b * machines seconds on a
+2-core CPU (measured: Kundur's 4 machines 21 CPU-s, NPCC's 48 machines 31 CPU-s,
+`simulate --case` at load 3, 2026-12-03)."""
+
+
+def compile_s(case, factor: float = 1.0) -> float:
+    """The expected first compile time (s) of a program over `case` (`COMPILE_S`),
+    times `factor` for a larger program (a batch with its metrics)."""
+    a, b = COMPILE_S
+    return factor * (a + b * case.n_gen)
+
+
+def say_phase(what: str, program: str, seconds: float) -> None:
+    """The line before a compile: 'compiling WHAT: about N s the first time, then
+    cached', or, when the compilation cache holds a program of that name, that it
+    is loaded from there (seconds)."""
+    from .._process import cache_state
+
+    state = cache_state(program)
+    if state == "warm":
+        text = f"compiling {what}: from the compilation cache if it holds this case "
+        text += f"(a few s), else about {seconds:.0f} s"
+    else:
+        text = f"compiling {what}: about {seconds:.0f} s the first time, then cached"
+        if state == "off":
+            text = f"compiling {what}: about {seconds:.0f} s (no compilation cache)"
+    print(text, file=sys.stderr, flush=True)
+
+
 def _solver_kw(args) -> dict:
     """The horizon, sampling and tolerances of a run, from the command line."""
     return dict(t_end=args.t_end, dt_save=args.dt_save, rtol=args.rtol, atol=args.atol)
@@ -293,16 +400,18 @@ def _event_text(case, ev) -> str:
 
 
 def run_simulate(args) -> int:
-    """`simulate --case`: one run; summary, npz (per-generator and per-bus arrays with
-    their ids), plot of every machine."""
+    """`simulate --case`: one run; summary, the trajectory (per-generator and per-bus
+    arrays with their PSS/E ids) in the format of the --out suffix, the plot."""
     import jax.numpy as jnp
 
-    from .._files import check_new_file, write_npz
+    from .._export import grid_columns, write_trajectory
+    from .._files import check_new_file
     from ..grid.loop import gen_names
     from ..grid.metrics import grid_metrics
     from ..grid.simulate import coi_angles, simulate_jit
+    from .simulate import check_out
 
-    out = check_new_file(args.out, args.force, "--out") if args.out else None
+    out = check_out(args.out, args.force) if args.out else None
     plot = None
     if args.plot:
         from .._figures import check_plot_path
@@ -312,7 +421,7 @@ def run_simulate(args) -> int:
     ev = events_from_args(case, args)
     print(_describe(case, pf), file=sys.stderr)
     print(f"events: {_event_text(case, ev)}", file=sys.stderr)
-    print("compiling and running ...", file=sys.stderr)
+    say_phase(f"the simulation of {_size(case)}", "jit_simulate_jit", compile_s(case))
     t0 = time.perf_counter()
     tr = simulate_jit(case, op, ev, **_solver_kw(args))
     t_first = min(float(e.switches()[0]) for e in ev)
@@ -373,8 +482,15 @@ def run_simulate(args) -> int:
         ),
     }
     if out:
-        write_npz(out, arrays)
-        print(f"wrote {out}")
+        written = write_trajectory(
+            out,
+            arrays,
+            grid_columns(arrays),
+            station=case.name,
+            frequency=60.0,  # the raw reader keeps no base frequency: 60 Hz
+            trigger=t_first,
+        )
+        print(f"wrote {', '.join(str(w) for w in written)}")
     if plot:
         plot_case(arrays, ev, case, plot)
         print(f"wrote {plot}")
