@@ -294,3 +294,40 @@ def test_skip_unsupported_drops_the_records_with_one_warning(tmp_path, capsys):
     ref = tmp_path / "ref.npz"
     assert main([*run, "--case", "smib-gencls", "--out", str(ref)]) == 0
     np.testing.assert_array_equal(np.load(out)["delta"], np.load(ref)["delta"])
+
+
+@pytest.mark.parametrize("suffix", [".csv", ".mat", ".cfg"])
+def test_simulate_a_case_writes_the_format_its_out_suffix_names(tmp_path, suffix):
+    """`--out run.csv` is a CSV table (it was an npz under a .csv name), `.mat`
+    MATLAB, `.cfg` COMTRADE with its .dat; devices by PSS/E bus number and
+    generator bus:id (issue 50)."""
+    out = tmp_path / f"run{suffix}"
+    argv = ["simulate", "--case", "smib-gencls", "--fault-bus", "2"]
+    argv += ["--fault-time", "0.2", "--clear-time", "0.3", "--t-end", "2"]
+    assert main([*argv, "--out", str(out)]) == 0
+    if suffix == ".csv":
+        import csv
+
+        with open(out, newline="") as fh:
+            rows = list(csv.reader(fh))
+        assert rows[0][:2] == ["t (s)", "delta_coi G 1:1 (rad)"]
+        assert "v_bus bus 2 (pu)" in rows[0] and len(rows) == 202
+        k = rows[0].index("v_bus bus 2 (pu)")
+        t = [float(r[0]) for r in rows[1:]]
+        i = int(np.searchsorted(t, 0.25))
+        assert abs(float(rows[1 + i][k])) < 1e-9  # the faulted bus during the fault
+    elif suffix == ".mat":
+        from scipy.io import loadmat
+
+        m = loadmat(out)
+        assert m["delta"].shape == (201, 3) and m["t"].shape == (201, 1)
+        assert [s.strip() for s in m["gen"]] == ["1:1", "2:1", "3:1"]
+    else:
+        cfg = out.read_bytes().decode().split("\r\n")
+        assert cfg[0] == "smib-gencls,smibjax,1999"
+        n = int(cfg[1].split(",")[0])
+        assert n == 8 * 3 + 3 and cfg[1] == f"{n},{n}A,0D"
+        assert cfg[2 + n + 2] == "100,201"  # 100 samples/s, 201 samples
+        dat = out.with_suffix(".dat").read_bytes().decode().split("\r\n")
+        assert len([r for r in dat if r]) == 201
+        assert all(len(r.split(",")) == 2 + n for r in dat if r)

@@ -100,6 +100,8 @@ def precheck_case(args) -> None:
     if not case:
         return
     p = Path(case)
+    if not dyr and (p.suffix.lower() == ".raw" or p.is_file()):
+        raise CLIError(f"{case}: a raw file needs its dyr file (--dyr)")  # as load_case
     if p.suffix.lower() == ".raw" or p.exists() or dyr:
         if not _looks_like_raw(_text_head(p, "--case", "PSS/E raw file")):
             raise CLIError(
