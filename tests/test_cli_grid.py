@@ -125,6 +125,7 @@ def test_compare_a_case_against_its_parameter_sets(tmp_path, capsys):
     table = (out / "compare.md").read_text()
     assert "| heavy | GENCLS.H=12 |" in table and "| case | the case's own |" in table
     assert "peak Efd (pu)" in table and "the same for every set" in table
+    assert (out / "compare.png").stat().st_size > 10_000  # issue 50: as the SMIB's
     # issue 32: the CCT of a bolted fault at each fault bus (bus 2, at 0.5 s), one
     # per set (H = 12 on every GENCLS, the infinite bus's machine too: not longer)
     cct = {k: v["cct"]["2"] for k, v in data["cct"].items()}
@@ -257,14 +258,38 @@ def test_cct_on_a_case_uses_the_commands_tolerances(tmp_path, monkeypatch, capsy
         return real(*a, **kw)
 
     monkeypatch.setattr(grid_cct, "critical_clearing_times_grid", spy)
-    out = tmp_path / "cct.json"
+    out = tmp_path / "cct"  # issue 50: written as cct.json (was: no extension)
     argv = ["cct", "--case", "smib-gencls", "--fault-buses", "2", "--t-end", "2"]
     argv += ["--rtol", "1e-7", "--atol", "1e-9", "--tol", "0.01", "--out", str(out)]
     assert main(argv) == 0
     assert [(k["rtol"], k["atol"], k["tol"]) for k in seen] == [(1e-7, 1e-9, 0.01)]
-    data = json.loads(out.read_text())
+    assert not out.exists()
+    data = json.loads((tmp_path / "cct.json").read_text())
     printed = capsys.readouterr().out
     assert f"{data['cct']['2']:.4f}" in printed
+    # rows by PSS/E bus number and name, and the plot beside the JSON (as the SMIB's)
+    assert data["rows"] == [
+        {
+            "bus": 2,
+            "name": data["rows"][0]["name"],
+            "cct": data["cct"]["2"],
+            "status": "found",
+        }
+    ]
+    assert (tmp_path / "cct.png").stat().st_size > 5_000
+    assert f"wrote {tmp_path / 'cct.json'} and {tmp_path / 'cct.png'}" in printed
+
+
+def test_cct_out_of_another_format_is_refused_before_the_run(tmp_path, capsys):
+    out = tmp_path / "cct.csv"
+    argv = ["cct", "--case", "smib-gencls", "--fault-buses", "2", "--out", str(out)]
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == [
+        f"smibjax: error: --out = {str(out)!r} is not allowed: must end in .json (the "
+        "CCTs are written as JSON, their plot beside them as .png)"
+    ]
+    assert not out.exists()
 
 
 def test_skip_unsupported_drops_the_records_with_one_warning(tmp_path, capsys):

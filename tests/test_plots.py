@@ -299,3 +299,47 @@ def test_the_tuners_before_after_figure_shares_its_y_axes(captured):
     assert "other 4 machines" in entries
     for ax in fig.axes:
         assert _event_lines(ax) == [1.0, 1.1]
+
+
+def test_the_case_cct_chart_names_buses_shortest_first(captured):
+    rows = [
+        {"bus": 7, "name": "", "cct": 0.21, "status": "found"},
+        {"bus": 3, "name": "", "cct": None, "status": "exceeds_max"},
+        {"bus": 9, "name": "", "cct": 0.0, "status": "unstable_at_min"},
+        {"bus": 1, "name": "", "cct": 0.12, "status": "found"},
+    ]
+    plotting.plot_case_cct(rows, 1.0, "x.png", "t")
+    ax = captured[-1].axes[0]
+    assert [t.get_text() for t in ax.get_xticklabels()] == ["9", "1", "7", "3"]
+    heights = [p.get_height() for p in ax.patches]
+    assert heights == [0.12, 0.21, 1.0]  # the last: hatched, stable at 1 s
+    assert ax.patches[-1].get_hatch() == "//"
+    crosses = [ln for ln in ax.lines if ln.get_marker() == "x"]
+    assert len(crosses) == 1 and list(crosses[0].get_xdata()) == [0]
+    assert ax.get_ylabel() == "critical clearing time (s)"
+
+
+def test_the_case_compare_figure_has_a_curve_per_set(captured):
+    rng = np.random.default_rng(0)
+    rows = {
+        k: {
+            "stable": np.array([True, True, False, True]),
+            "settling_angle": rng.uniform(1, 3, 4),
+            "overshoot": rng.uniform(0.1, 0.3, 4),
+        }
+        for k in ("case", "heavy")
+    }
+    ccts = {
+        "case": {"cct": {2: 0.2, 5: 0.1, 8: None}},
+        "heavy": {"cct": {2: 0.3, 5: 0.2, 8: 0.4}},
+    }
+    plotting.plot_case_compare(rows, ccts, "x.png")
+    fig = captured[-1]
+    assert len(fig.axes) == 3
+    legend = [t.get_text() for t in fig.axes[0].get_legend().get_texts()]
+    assert legend == ["case (3 of 4 stable)", "heavy (3 of 4 stable)"]
+    assert fig.axes[1].get_xlabel() == "first-swing overshoot (deg)"
+    ax = fig.axes[2]
+    assert [t.get_text() for t in ax.get_xticklabels()] == ["5", "2", "8"]
+    ys = [list(ln.get_ydata()) for ln in ax.lines]
+    assert ys[0][:2] == [0.1, 0.2] and np.isnan(ys[0][2]) and ys[1] == [0.2, 0.3, 0.4]

@@ -335,20 +335,15 @@ def compile_s(case, factor: float = 1.0) -> float:
 
 
 def say_phase(what: str, program: str, seconds: float) -> None:
-    """The line before a compile: 'compiling WHAT: about N s the first time, then
-    cached', or, when the compilation cache holds a program of that name, that it
-    is loaded from there (seconds)."""
+    """The line before a compile: 'compiling WHAT: about N s the first time, a few s
+    once cached' (or, without a compilation cache, 'about N s')."""
     from .._process import cache_state
 
-    state = cache_state(program)
-    if state == "warm":
-        text = f"compiling {what}: from the compilation cache if it holds this case "
-        text += f"(a few s), else about {seconds:.0f} s"
+    if cache_state(program) == "off":
+        text = f"about {seconds:.0f} s (no compilation cache)"
     else:
-        text = f"compiling {what}: about {seconds:.0f} s the first time, then cached"
-        if state == "off":
-            text = f"compiling {what}: about {seconds:.0f} s (no compilation cache)"
-    print(text, file=sys.stderr, flush=True)
+        text = f"about {seconds:.0f} s the first time, a few s once cached"
+    print(f"compiling {what}: {text}", file=sys.stderr, flush=True)
 
 
 def _solver_kw(args) -> dict:
@@ -729,10 +724,15 @@ def add_montecarlo_options(p) -> None:
 def run_cct(args) -> int:
     """`cct --case`: the critical clearing time of a bolted fault at each bus of
     --fault-buses (cleared without tripping), by bisection to --tol, all buses in
-    one batch per bisection step."""
+    one batch per bisection step; with --out the JSON (rows by PSS/E bus number and
+    name) and its plot beside it (.png)."""
     from .._files import check_new_file, write_json
+    from .plotting import plot_case_cct
 
-    out = check_new_file(args.out, args.force, "--out") if args.out else None
+    out = png = None
+    if args.out:
+        out = check_new_file(args.out, args.force, "--out")
+        png = check_new_file(out.with_suffix(".png"), args.force, "--out (its plot)")
     case, op, pf = load(args)
     try:
         buses = _int_list(args.fault_buses) or [
@@ -740,20 +740,52 @@ def run_cct(args) -> int:
         ]
     except ValueError as e:
         raise CLIError(str(e)) from None
-    res = _bisect_cct(case, op, buses, args, args.cct_max)
     print(_describe(case, pf), file=sys.stderr)
+    res = _bisect_cct(case, op, buses, args, args.cct_max)
     print(f"{'bus':>6}  CCT (s)")
     for b, c in res["cct"].items():
-        text = (
-            "none (unstable at the shortest)"
-            if c == 0
-            else (f"> {args.cct_max:g}" if c is None else f"{c:.4f}")
-        )
-        print(f"{b:>6}  {text}")
+        print(f"{b:>6}  {_cct_text_of(c, args.cct_max)}")
     if out:
-        write_json(out, {"case": case.name, "params": _params(args.param), **res})
-        print(f"wrote {out}")
+        rows = cct_rows(case, res)
+        write_json(
+            out,
+            {"case": case.name, "params": _params(args.param), **res, "rows": rows},
+        )
+        plot_case_cct(
+            rows,
+            res["t_max"],
+            png,
+            f"{case.name}: critical clearing time of a bolted bus fault at "
+            f"{res['t_fault']:g} s, removed without tripping (bisection to "
+            f"{res['tol']:g} s)",
+        )
+        print(f"wrote {out} and {png}")
     return 0
+
+
+def _cct_text_of(c, t_max: float) -> str:
+    """A printed CCT: the number (4 decimals), or what it is not."""
+    if c == 0:
+        return "none (unstable at the shortest)"
+    return f"> {t_max:g}" if c is None else f"{c:.4f}"
+
+
+def cct_rows(case, res: dict) -> list[dict]:
+    """One row per fault bus of a CCT result: PSS/E bus number, its name, the CCT
+    (s; None: stable at the longest duration tried) and its status ("found",
+    "exceeds_max", "unstable_at_min")."""
+    num = [int(b) for b in np.asarray(case.system.buses.number)]
+    names = list(case.system.buses.name) or [""] * len(num)
+    name_of = dict(zip(num, (str(n).strip() for n in names), strict=False))
+    rows = []
+    for b, c in res["cct"].items():
+        status = (
+            "exceeds_max" if c is None else ("unstable_at_min" if c == 0 else "found")
+        )
+        rows.append(
+            {"bus": int(b), "name": name_of.get(int(b), ""), "cct": c, "status": status}
+        )
+    return rows
 
 
 def _variant(text: str) -> tuple[str, list[str]]:
@@ -952,9 +984,10 @@ def run_compare(args) -> int:
     cct_text = _cct_text(args, dist)
     if cct_text.startswith("none"):
         print(f"smibjax: note: CCT column: {cct_text}", file=sys.stderr)
-    summaries, ccts = {}, {}
+    summaries, ccts, all_rows = {}, {}, {}
     for label, (a, case, op, _pf, dist, n, chunk) in loaded.items():
         rows, _ = grid_rows(case, op, dist, n, chunk, a, desc=label)
+        all_rows[label] = rows
         summaries[label] = case_summary(rows)
         if not cct_text.startswith("none"):
             ccts[label] = case_cct(case, op, a)
@@ -975,7 +1008,15 @@ def run_compare(args) -> int:
             "cct": ccts,
         },
     )
+    from .plotting import plot_case_compare
+
+    plot_case_compare(
+        all_rows,
+        ccts,
+        out / "compare.png",
+        f"Parameter sets on {case.name}: {dist_text}",
+    )
     print(f"{case.name}: {dist_text}")
     print(table)
-    print(f"wrote {out}/compare.md, compare.json")
+    print(f"wrote {out}/compare.md, compare.json, compare.png")
     return 0

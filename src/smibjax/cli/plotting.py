@@ -28,6 +28,8 @@ __all__ = [
     "bus_extremes",
     "plot_grid_run",
     "plot_grid_compare",
+    "plot_case_cct",
+    "plot_case_compare",
 ]
 
 _STYLES = ["-", ":", "--", "-."]
@@ -414,13 +416,14 @@ def _note_if_zero(ax, y, ylabel: str) -> None:
         what = "no stabilizer in this case" if "Vs" in ylabel else "constant"
         ax.text(
             0.5,
-            0.5,
+            0.75,
             f"zero throughout ({what})",
             transform=ax.transAxes,
             ha="center",
             va="center",
             fontsize=9,
             color="dimgray",
+            bbox={"facecolor": "white", "edgecolor": "none", "alpha": 0.8},
         )
 
 
@@ -488,8 +491,8 @@ def plot_grid_run(
     panels = [
         (ang, "angle - COI (deg)"),
         (a["omega"], "speed deviation (pu)"),
-        (_change(a["pe"]), "Pe - Pe(0): electrical power (pu machine base)"),
-        (_change(a["pm"]), "Pm - Pm(0): mechanical power (pu machine base)"),
+        (_change(a["pe"]), "electrical power Pe - Pe(0)\n(pu machine base)"),
+        (_change(a["pm"]), "mechanical power Pm - Pm(0)\n(pu machine base)"),
         (a["efd"], "field voltage Efd (pu)"),
         (a["vs"], "stabilizer output Vs (pu)"),
         (a["vt"], "terminal voltage (pu)"),
@@ -605,4 +608,128 @@ def plot_grid_compare(
     if title:
         fig.suptitle(title, fontsize=10)
     fig.tight_layout(rect=(0, 0, right, 0.97))
+    save_figure(fig, path)
+
+
+CCT_SHOWN = 30
+"""The most fault buses a CCT bar chart names (the shortest CCTs)."""
+
+
+def plot_case_cct(rows: list[dict], t_max: float, path, title: str = "") -> None:
+    """The critical clearing time (s) of a fault at each bus (`rows`: bus, name,
+    cct, status as `cli.grid.cct_rows`), shortest first, one bar per bus labelled
+    with its PSS/E number: at most `CCT_SHOWN` buses (the shortest), a bar to
+    `t_max` hatched where the run is stable even then, a red cross at 0 where it is
+    unstable at the shortest duration tried."""
+
+    def key(r):
+        return t_max * 2 if r["cct"] is None else r["cct"]
+
+    rows = sorted(rows, key=key)
+    shown = rows[:CCT_SHOWN]
+    fig, ax = subplots(figsize=(max(6.0, 0.28 * len(shown) + 2.5), 4.3))
+    x = np.arange(len(shown))
+    for i, r in enumerate(shown):
+        if r["status"] == "exceeds_max":
+            ax.bar(i, t_max, color="none", edgecolor="C0", hatch="//", lw=0.8)
+        elif r["status"] == "unstable_at_min":
+            ax.plot(i, 0.0, "x", color="red", ms=8, mew=2)
+        else:
+            ax.bar(i, r["cct"], color="C0")
+    ax.set_xticks(x)
+    ax.set_xticklabels([str(r["bus"]) for r in shown], rotation=90, fontsize=7)
+    ax.set_xlim(-0.7, max(len(shown) - 0.3, 0.7))
+    ax.set_ylim(0, 1.08 * t_max)
+    ax.axhline(t_max, color="k", ls="--", lw=0.8)
+    ax.set_xlabel(
+        "fault bus (PSS/E number)"
+        + (
+            f", the {len(shown)} shortest of {len(rows)}"
+            if len(shown) < len(rows)
+            else ""
+        )
+    )
+    ax.set_ylabel("critical clearing time (s)")
+    ax.grid(alpha=0.3, axis="y")
+    from matplotlib.lines import Line2D
+    from matplotlib.patches import Patch
+
+    ax.legend(
+        handles=[
+            Patch(color="C0", label="CCT"),
+            Patch(facecolor="none", edgecolor="C0", hatch="//", label=f"> {t_max:g} s"),
+            Line2D([], [], ls="", marker="x", color="red", mew=2, label="none"),
+            Line2D([], [], ls="--", color="k", lw=0.8, label="longest tried"),
+        ],
+        fontsize=7,
+        loc="upper left",
+        bbox_to_anchor=(1.0, 1.0),
+        frameon=False,
+    )
+    ax.set_title(title, fontsize=9)
+    fig.tight_layout()
+    save_figure(fig, path)
+
+
+def plot_case_compare(rows: dict[str, dict], ccts: dict, path, title: str = "") -> None:
+    """`compare --case`: per parameter set, the settling time of the angles from the
+    centre of inertia (s; stable scenarios) and the first-swing overshoot (deg) as
+    histograms on shared bins, and (when computed) the critical clearing time (s) of
+    a bolted fault at each bus, buses by PSS/E number in the order of the first
+    set's CCTs. `rows`: label -> `GridMetrics` rows; `ccts`: label -> a
+    `critical_clearing_times_grid` result (may be empty)."""
+    n = 3 if ccts else 2
+    fig, axes = subplots(1, n, figsize=(5.2 * n, 4.2))
+    settle = {}
+    for label, r in rows.items():
+        st = np.asarray(r["stable"], dtype=bool)
+        ts = np.asarray(r["settling_angle"], dtype=float)[st]
+        settle[label] = ts[np.isfinite(ts)]
+    every = np.concatenate([v for v in settle.values()] + [np.zeros(1)])
+    bins = np.linspace(0.0, max(float(every.max()), 1e-3), 31)
+    for i, (label, v) in enumerate(settle.items()):
+        n_st = int(np.sum(np.asarray(rows[label]["stable"], dtype=bool)))
+        axes[0].hist(
+            v,
+            bins=bins,
+            histtype="step",
+            lw=1.5,
+            color=f"C{i}",
+            label=f"{label} ({n_st} of {len(rows[label]['stable'])} stable)",
+        )
+    axes[0].set_xlabel("settling time of the COI angles (s)")
+    axes[0].set_ylabel("scenarios")
+    over = {
+        k: np.degrees(np.asarray(r["overshoot"], dtype=float)) for k, r in rows.items()
+    }
+    every = np.concatenate([v[np.isfinite(v)] for v in over.values()] + [np.zeros(1)])
+    bins = np.linspace(0.0, max(float(every.max()), 1e-3), 31)
+    for i, (label, v) in enumerate(over.items()):
+        axes[1].hist(
+            v[np.isfinite(v)],
+            bins=bins,
+            histtype="step",
+            lw=1.5,
+            color=f"C{i}",
+            label=label,
+        )
+    axes[1].set_xlabel("first-swing overshoot (deg)")
+    if ccts:
+        ax = axes[2]
+        first = next(iter(ccts.values()))["cct"]
+        order = sorted(first, key=lambda b: np.inf if first[b] is None else first[b])
+        x = np.arange(len(order))
+        for i, (label, res) in enumerate(ccts.items()):
+            y = [np.nan if res["cct"].get(b) is None else res["cct"][b] for b in order]
+            ax.plot(x, y, "o-", ms=3, lw=1, color=f"C{i}", label=label)
+        ax.set_xticks(x)
+        ax.set_xticklabels([str(b) for b in order], rotation=90, fontsize=6)
+        ax.set_xlabel("fault bus (PSS/E number; gaps: stable at the longest tried)")
+        ax.set_ylabel("critical clearing time (s)")
+    for ax in axes:
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=7)
+    if title:
+        fig.suptitle(title, fontsize=10)
+    fig.tight_layout()
     save_figure(fig, path)
