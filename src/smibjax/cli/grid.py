@@ -484,7 +484,7 @@ def run_simulate(args) -> int:
             arrays,
             grid_columns(arrays),
             station=case.name,
-            frequency=60.0,  # the raw reader keeps no base frequency: 60 Hz
+            frequency=float(case.system.f_base),
             trigger=t_first,
         )
         print(f"wrote {', '.join(str(w) for w in written)}")

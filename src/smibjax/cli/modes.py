@@ -194,8 +194,9 @@ def _mode_dict(m, lin):
 
 
 def table(ms) -> str:
-    """The electromechanical modes as a text table."""
-    from ..grid.modes import dominant_machines
+    """The electromechanical modes as a text table (the dominant machines: the
+    first five and a count)."""
+    from ..grid.modes import dominant_text
 
     lines = [
         f"{'mode':>4}  {'eigenvalue (1/s)':>22}  {'f (Hz)':>7}  {'zeta (%)':>8}  "
@@ -206,7 +207,7 @@ def table(ms) -> str:
         lam = m.eigenvalue
         lines.append(
             f"{k + 1:>4}  {lam.real:>10.4f} {lam.imag:+10.4f}j  {m.frequency:>7.4f}  "
-            f"{100 * m.damping:>8.3f}  {m.scope:<10}  {', '.join(dominant_machines(m))}"
+            f"{100 * m.damping:>8.3f}  {m.scope:<10}  {dominant_text(m)}"
         )
     others = {}
     for m in ms:

@@ -15,13 +15,15 @@ so that each mode's participations sum to 1 (Kundur section 12.2). A mode is
 *electromechanical* when the rotor angles and speeds hold most of its participation
 (> 0.5) and it oscillates (0.05 to 5 Hz); it is *inter-area* when the machines that
 take part (speed mode shape at least 20% of the largest) swing in two opposing groups
-whose areas (the raw file's bus areas) are disjoint, or, in a one-area system, when
-each opposing group has at least two machines; *common* when two or more machines
-take part all in phase (no opposing group: the whole system swinging against its
-controllers, e.g. a slow speed-governor or washout mode); *local* otherwise. Zero modes (|lambda|
-< 1e-6 1/s... see `zero_tol`) of a system without an infinite bus, the absolute
-angle and, without governors or damping, the common speed, are reported as
-`kind = "zero"`, not as instabilities; each zero eigenvalue is its own mode (a
+whose main areas (the raw file's bus area holding most of each group's mode shape)
+differ, or, in a one-area system, when each opposing group has at least two
+machines, or, in any system, when many machines take part (`SPREAD`: at least 6 and
+a quarter of them; a 0.22 Hz NPCC mode of 24 machines in overlapping areas);
+*common* when two or more machines take part all in phase (no opposing group: the
+whole system swinging against its controllers, e.g. a slow speed-governor or washout
+mode); *local* otherwise. Zero modes (|lambda| < 1e-6 1/s... see `zero_tol`) of a
+system without an infinite bus, the absolute angle and, without governors or
+damping, the common speed, are reported as `kind = "zero"`, not as instabilities; each zero eigenvalue is its own mode (a
 double zero of an undamped system without an infinite bus is two modes: its
 numerical pair, ~1e-8 apart, is not a conjugate pair). A zero mode whose
 participation sits on a state that never moves (its row of A is identically zero: a
@@ -51,6 +53,7 @@ __all__ = [
     "participation",
     "transfer_function",
     "dominant_machines",
+    "dominant_text",
     "check_equilibrium",
 ]
 
@@ -222,6 +225,14 @@ def dominant_machines(mode: Mode, share: float = 0.2) -> tuple[str, ...]:
     return tuple(g for g, v in items if abs(v) >= share)
 
 
+def dominant_text(mode: Mode, top: int = 5, share: float = 0.2) -> str:
+    """The dominant machines (`dominant_machines`) for a line of text: the first
+    `top`, then how many more ("23:2, 36:1, 24:1, 25:1, 23:1 and 19 more")."""
+    names = dominant_machines(mode, share)
+    text = ", ".join(names[:top])
+    return text + (f" and {len(names) - top} more" if len(names) > top else "")
+
+
 def transfer_function(lin: Linearization, s, output, input) -> complex:
     """G(s) = C_i (sI - A)^-1 B_j + D_ij for the output ('Vt', '1:1') and the input
     ('Efd', '1:1') named as in `lin.outputs` / `lin.inputs`; `s` in 1/s (j omega
@@ -233,8 +244,18 @@ def transfer_function(lin: Linearization, s, output, input) -> complex:
     return complex(lin.C[i] @ x + lin.D[i, j])
 
 
+SPREAD = (6, 0.25)
+"""A mode whose speed mode shape has at least max(6, 25% of the machines) taking
+part, in two opposing groups, is inter-area whatever the areas say (`_scope`)."""
+
+
 def _scope(shape: dict, names, areas) -> str:
-    """'inter-area' or 'local' from the speed mode shape (see the module docstring)."""
+    """'inter-area', 'local' or 'common' from the speed mode shape (see the module
+    docstring): the machines taking part (|shape| >= 0.2 of the largest) split by
+    the sign of their real part into two opposing groups; inter-area when the two
+    groups' main areas (the area holding most of a group's |shape|) differ, in a
+    one-area system when each group has two machines or more, and in any system
+    when the machines taking part are many (`SPREAD`); local otherwise."""
     if not shape:
         return ""
     area_of = dict(zip(names, areas, strict=True))
@@ -243,9 +264,18 @@ def _scope(shape: dict, names, areas) -> str:
     neg = [g for g, v in sig.items() if v.real < 0]
     if not pos or not neg:
         return "common" if len(sig) >= 2 else "local"
-    a_pos, a_neg = {area_of[g] for g in pos}, {area_of[g] for g in neg}
+    least, share = SPREAD
+    if len(sig) >= max(least, share * len(shape)):
+        return "inter-area"
+
+    def main_area(group):
+        weight: dict = {}
+        for g in group:
+            weight[area_of[g]] = weight.get(area_of[g], 0.0) + abs(sig[g])
+        return max(weight, key=weight.get)
+
     if len(set(areas)) > 1:
-        return "inter-area" if not (a_pos & a_neg) else "local"
+        return "inter-area" if main_area(pos) != main_area(neg) else "local"
     return "inter-area" if min(len(pos), len(neg)) >= 2 else "local"
 
 
