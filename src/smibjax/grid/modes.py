@@ -12,22 +12,22 @@ Modes (`modes`): eigenvalues lambda = sigma + j omega of A, frequency omega/(2 p
 (Hz), damping ratio zeta = -sigma/|lambda|, right eigenvectors r (columns) and left
 eigenvectors l (rows of inv(R)), participation factors p_ki = |r_ki l_ik| normalized
 so that each mode's participations sum to 1 (Kundur section 12.2). A mode is
-*electromechanical* when the rotor angles and speeds hold most of its participation
-(> 0.5) and it oscillates (0.05 to 5 Hz); it is *inter-area* when the machines that
-take part (speed mode shape at least 20% of the largest) swing in two opposing groups
-whose main areas (the raw file's bus area holding most of each group's mode shape)
-differ, or, in a one-area system, when each opposing group has at least two
-machines, or, in any system, when many machines take part (`SPREAD`: at least 6 and
-a quarter of them; a 0.22 Hz NPCC mode of 24 machines in overlapping areas);
-*common* when two or more machines take part all in phase (no opposing group: the
-whole system swinging against its controllers, e.g. a slow speed-governor or washout
-mode); *local* otherwise. Zero modes (|lambda| < 1e-6 1/s... see `zero_tol`) of a
-system without an infinite bus, the absolute angle and, without governors or
-damping, the common speed, are reported as `kind = "zero"`, not as instabilities; each zero eigenvalue is its own mode (a
-double zero of an undamped system without an infinite bus is two modes: its
-numerical pair, ~1e-8 apart, is not a conjugate pair). A zero mode whose
-participation sits on a state that never moves (its row of A is identically zero: a
-disabled filter stage, an infinite bus's angle) has `kind = "frozen"`.
+*electromechanical* when the rotor angles and speeds hold most of its participation (>
+0.5) and it oscillates (0.05 to 5 Hz); it is *inter-area* when the machines that take
+part (speed mode shape at least 20% of the largest) swing in two opposing groups whose
+main areas (the raw file's bus area holding most of each group's mode shape) differ,
+or, in a one-area system, when each opposing group has at least two machines, or, in
+any system, when many machines take part (`SPREAD`: at least 6 and a quarter of them;
+a 0.22 Hz NPCC mode of 24 machines in overlapping areas); *common* when two or more
+machines take part all in phase (no opposing group: the whole system swinging against
+its controllers, e.g. a slow speed-governor or washout mode); *local* otherwise. Zero
+modes (|lambda| < 1e-6 1/s... see `zero_tol`) of a system without an infinite bus, the
+absolute angle and, without governors or damping, the common speed, are reported as
+`kind = "zero"`, not as instabilities; each zero eigenvalue is its own mode (a double
+zero of an undamped system without an infinite bus is two modes: its numerical pair,
+~1e-8 apart, is not a conjugate pair). A zero mode whose participation sits on a state
+that never moves (its row of A is identically zero: a disabled filter stage, an
+infinite bus's angle) has `kind = "frozen"`.
 The damping ratio of a zero or frozen mode is reported as NaN (undefined).
 """
 
