@@ -87,10 +87,12 @@ def main(argv: list[str] | None = None) -> int:
     except ValueError as e:  # a bad SMIBJAX_CACHE_MIN_COMPILE_S
         print(f"smibjax: error: {e}", file=sys.stderr)
         return 2
+    from .._commandline import xla_alarms_explained
     from .._parameters import ParameterError
 
     try:
-        return args.func(args)
+        with xla_alarms_explained():
+            return args.func(args)
     except CLIError as e:
         print(f"smibjax: error: {e}", file=sys.stderr)
         return 2
