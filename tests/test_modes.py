@@ -562,3 +562,25 @@ def test_dominant_text_is_the_first_five_and_a_count():
     assert dominant_text(m) == "0:1, 1:1, 2:1, 3:1, 4:1 and 19 more"
     small = Mode(**{**m.__dict__, "shape": _shape({"1:1": 1.0, "2:1": -0.5})})
     assert dominant_text(small) == "1:1, 2:1"
+
+
+def test_active_limits_names_a_governor_sitting_on_its_valve_limit():
+    """Issue 50: on ANDES's IEEE 14 a governor sits exactly on its lower limit, which
+    the linearization and another program treat differently; `active_limits` names
+    each such limiter. Kundur's TGOV1 at 1:1 with VMIN moved onto its valve
+    position is found (and only it); with VMIN back below, nothing is."""
+    from smibjax.grid.loop import state_labels
+    from smibjax.grid.modes import active_limits
+    from smibjax.grid.params import set_params
+
+    case = load_case("kundur")
+    op, _ = operating_point(case)
+    assert active_limits(case, op) == []
+    k = state_labels(case).index(("TGOV1", "1:1", "x_v"))
+    xv = float(op.y0[k])
+    on = set_params(case, {"TGOV1[1:1].VMIN": xv})
+    op_on, _ = operating_point(on)
+    assert float(op_on.y0[k]) == pytest.approx(xv, rel=1e-12)
+    assert active_limits(on, op_on) == [("TGOV1", "1:1", "x_v", "VMIN", xv)]
+    off = set_params(case, {"TGOV1[1:1].VMIN": xv - 1e-3})
+    assert active_limits(off, operating_point(off)[0]) == []

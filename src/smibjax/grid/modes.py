@@ -55,6 +55,8 @@ __all__ = [
     "dominant_machines",
     "dominant_text",
     "check_equilibrium",
+    "active_limits",
+    "LIMIT_CONVENTION",
 ]
 
 INPUTS = ("Efd", "Pm", "Vs")
@@ -294,3 +296,52 @@ def check_equilibrium(case: Case, op: Operating, tol: float = 1e-6) -> None:
             f"the operating point is not an equilibrium: d{st}/dt = {dy[k]:.3g} at "
             f"{model} {dev} (more than {tol:g})"
         )
+
+
+LIMIT_CONVENTION = (
+    "the linearization takes JAX's derivative at the limit: a non-windup state "
+    "exactly on its limit is free (its derivative is not held at 0), the output "
+    "clipped there moves at half its free gain (neither binding nor free)"
+)
+"""How `linearize` treats a limiter whose signal sits exactly on its limit at the
+operating point (jnp.clip's derivative at a tie is 1/2; `_blocks.nonwindup` holds a
+state only while it is pushed outwards, and at rest nothing pushes). Another
+program may treat the limit as binding (derivative 0) or free (1)."""
+
+
+LIMITED_STATES = {
+    ("TGOV1", "x_v"): ("VMIN", "VMAX"),
+    ("SEXS", "Efd"): ("EMIN", "EMAX"),
+}
+"""The states held by constant non-windup limits, by (model, state): the limits
+`active_limits` checks. Not checked: exciter limits that move with the terminal
+voltage (IEEEX1, EXDC2, EXST1) and algebraic output limiters (IEEEST, STAB1,
+CSVGN1)."""
+
+
+def active_limits(case: Case, op: Operating, tol: float = 1e-9) -> list[tuple]:
+    """The limiters on which the operating point sits: (model, device 'bus:id',
+    state, limit name, value) for each state of `LIMITED_STATES` within `tol`
+    (relative, absolute below 1) of its device's limit, in the order of the flat
+    state."""
+    from .loop import state_labels
+
+    labels = state_labels(case)
+    y0 = np.asarray(op.y0, dtype=float)
+    lay = case.layout
+    groups = [(m, len(lay.machine_gen[k])) for k, m in enumerate(case.machines)]
+    groups += [(c, len(lay.controller_gen[k])) for k, c in enumerate(case.controllers)]
+    groups += [(sv, len(lay.svc_bus[k])) for k, sv in enumerate(case.svcs)]
+    out, at = [], 0
+    for dev, n in groups:
+        model = type(dev).__name__
+        for st in dev.state_names:
+            x = y0[at : at + n]
+            for name in LIMITED_STATES.get((model, st), ()):
+                lim = np.broadcast_to(np.asarray(getattr(dev, name), dtype=float), (n,))
+                near = np.abs(x - lim) <= tol * np.maximum(1.0, np.abs(lim))
+                for i in np.flatnonzero(np.isfinite(lim) & near):
+                    _, device, state = labels[at + i]
+                    out.append((model, device, state, name, float(lim[i])))
+            at += n
+    return out
