@@ -322,7 +322,9 @@ def test_skip_unsupported_drops_the_records_with_one_warning(tmp_path, capsys):
 
 
 @pytest.mark.parametrize("suffix", [".csv", ".mat", ".cfg"])
-def test_simulate_a_case_writes_the_format_its_out_suffix_names(tmp_path, suffix):
+def test_simulate_a_case_writes_the_format_its_out_suffix_names(
+    tmp_path, suffix, capsys
+):
     """`--out run.csv` is a CSV table (it was an npz under a .csv name), `.mat`
     MATLAB, `.cfg` COMTRADE with its .dat; devices by PSS/E bus number and
     generator bus:id (issue 50)."""
@@ -330,6 +332,12 @@ def test_simulate_a_case_writes_the_format_its_out_suffix_names(tmp_path, suffix
     argv = ["simulate", "--case", "smib-gencls", "--fault-bus", "2"]
     argv += ["--fault-time", "0.2", "--clear-time", "0.3", "--t-end", "2"]
     assert main([*argv, "--out", str(out)]) == 0
+    err = capsys.readouterr().err
+    # the phase line before the compile (issue 50: no silent wait)
+    assert (
+        "compiling the simulation of smib-gencls (3 machines, 3 buses): about 22 s "
+        "the first time, a few s once cached" in err
+    )
     if suffix == ".csv":
         import csv
 
