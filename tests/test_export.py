@@ -164,3 +164,9 @@ def test_a_name_without_suffix_gets_npz_and_known_suffixes_pass():
     assert _export.check_trajectory_path("runs/a").name == "a.npz"
     for s in (".npz", ".csv", ".mat", ".cfg", ".CSV"):
         assert _export.check_trajectory_path("a" + s).suffix == s
+
+
+def test_comtrade_time_stamps_past_a_minute():
+    """The trigger of a fault at 75.5 s (dd/mm/yyyy,hh:mm:ss.ssssss)."""
+    assert _export._stamp(75.5) == "01/01/2000,00:01:15.500000"
+    assert _export._stamp(3725.000001) == "01/01/2000,01:02:05.000001"

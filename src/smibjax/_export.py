@@ -188,6 +188,14 @@ def _comtrade_text(text: str) -> str:
     return str(text).replace(",", ";")[:64]
 
 
+def _stamp(seconds: float) -> str:
+    """A COMTRADE time stamp `seconds` (>= 0, < 1 day) after 01/01/2000 00:00:00."""
+    us = int(round(max(seconds, 0.0) * 1e6))
+    h, rest = divmod(us, 3_600_000_000)
+    m, rest = divmod(rest, 60_000_000)
+    return f"01/01/2000,{h:02d}:{m:02d}:{rest // 1_000_000:02d}.{rest % 1_000_000:06d}"
+
+
 def write_comtrade(
     path,
     t,
@@ -230,8 +238,8 @@ def write_comtrade(
         f"{frequency:g}",
         "1",
         f"{1.0 / dt:.9g},{n}",
-        "01/01/2000,00:00:00.000000",
-        f"01/01/2000,00:00:{trig:09.6f}" if trig < 60 else "01/01/2000,00:00:00.000000",
+        _stamp(0.0),
+        _stamp(trig),
         "ASCII",
         "1",
     ]
