@@ -26,7 +26,9 @@ ROOT = Path(__file__).resolve().parents[1]
 BENCH = ROOT / "benchmarks"
 STUDIES = ROOT / "studies"
 ENV = "SMIBJAX_BENCH_DIR"  # where the controller's chain writes (set for the workers)
-TIMEOUT = 600  # s, per script
+# no time limit: a script runs until it ends (on a loaded machine the tuning_grid
+# run took longer than the 600 s this once allowed, and was killed: issue 50); a
+# script that hangs is for the CI job's own limit to end
 
 # script -> tiny command-line arguments, in the order they run
 TINY = {
@@ -170,11 +172,7 @@ class Chain:
                         stdout=log,
                         stderr=subprocess.STDOUT,
                     )
-                try:
-                    rc = self._proc.wait(timeout=TIMEOUT)
-                except subprocess.TimeoutExpired:
-                    self._proc.kill()
-                    rc = self._proc.wait()
+                rc = self._proc.wait()
             tmp = out / "rc.tmp"
             tmp.write_text(str(rc))
             tmp.replace(out / "rc")
@@ -189,13 +187,11 @@ class Chain:
         self._thread.join(timeout=30)
 
 
-def wait(folder: Path, name: str, timeout: float) -> tuple[int, Path]:
-    """(exit status, folder) of script `name` once the chain has run it."""
+def wait(folder: Path, name: str) -> tuple[int, Path]:
+    """(exit status, folder) of script `name` once the chain has run it (however
+    long that takes: no test depends on wall time)."""
     out = Path(folder) / name
-    deadline = time.monotonic() + timeout
     while not (out / "rc").is_file():
-        if time.monotonic() > deadline:
-            raise TimeoutError(f"{name}.py did not finish within {timeout:.0f} s")
         time.sleep(0.2)
     return int((out / "rc").read_text()), out
 

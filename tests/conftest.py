@@ -80,11 +80,26 @@ def pytest_unconfigure(config):
         os.environ.pop(bench_chain.ENV, None)
 
 
+def slow_tests() -> set[str]:
+    """The test ids and modules of tests/slow_tests.txt (comments dropped)."""
+    text = (Path(__file__).parent / "slow_tests.txt").read_text(encoding="utf-8")
+    return {ln.split("#")[0].strip() for ln in text.splitlines()} - {""}
+
+
 def pytest_collection_modifyitems(config, items):
-    """The benchmark tests last: they wait for the background scripts."""
+    """The benchmark tests last: they wait for the background scripts. The tests
+    tests/slow_tests.txt names get the `slow` marker (`python -m pytest -m "not
+    slow"`: the quick subset; issue 50). To regenerate the list from a whole-suite
+    profile (`benchmarks/suite_time.py`), take the tests of its JSON `suite.tests`
+    whose `cpu_s + children_cpu_s` exceeds 2 s."""
     items.sort(
         key=lambda item: getattr(item.module, "__name__", "") == "test_benchmarks"
     )
+    slow = slow_tests()
+    for item in items:
+        module = item.nodeid.split("::")[0]
+        if item.nodeid in slow or module in slow:
+            item.add_marker(pytest.mark.slow)
 
 
 @pytest.fixture(scope="session")

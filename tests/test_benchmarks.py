@@ -15,7 +15,7 @@ import os
 
 import pytest
 
-from bench_chain import ENV, TIMEOUT, TINY, start, wait
+from bench_chain import ENV, TINY, start, wait
 from helpers import ROOT
 
 # collected last (conftest.py): by then the chain has mostly run
@@ -48,7 +48,7 @@ def finish(started, name, stem=None):
     """Wait for the script; its JSON results `stem`.json (default: the script's
     name; the output is printed on failure)."""
     stem = stem or name
-    rc, out = wait(started, name, TIMEOUT * len(TINY))
+    rc, out = wait(started, name)
     text = (out / "log.txt").read_text()
     print(text)
     assert rc == 0, f"{name}.py exited with {rc}:\n{text[-4000:]}"

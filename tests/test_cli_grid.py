@@ -125,6 +125,7 @@ def test_compare_a_case_against_its_parameter_sets(tmp_path, capsys):
     table = (out / "compare.md").read_text()
     assert "| heavy | GENCLS.H=12 |" in table and "| case | the case's own |" in table
     assert "peak Efd (pu)" in table and "the same for every set" in table
+    assert (out / "compare.png").stat().st_size > 10_000  # issue 50: as the SMIB's
     # issue 32: the CCT of a bolted fault at each fault bus (bus 2, at 0.5 s), one
     # per set (H = 12 on every GENCLS, the infinite bus's machine too: not longer)
     cct = {k: v["cct"]["2"] for k, v in data["cct"].items()}
@@ -257,14 +258,38 @@ def test_cct_on_a_case_uses_the_commands_tolerances(tmp_path, monkeypatch, capsy
         return real(*a, **kw)
 
     monkeypatch.setattr(grid_cct, "critical_clearing_times_grid", spy)
-    out = tmp_path / "cct.json"
+    out = tmp_path / "cct"  # issue 50: written as cct.json (was: no extension)
     argv = ["cct", "--case", "smib-gencls", "--fault-buses", "2", "--t-end", "2"]
     argv += ["--rtol", "1e-7", "--atol", "1e-9", "--tol", "0.01", "--out", str(out)]
     assert main(argv) == 0
     assert [(k["rtol"], k["atol"], k["tol"]) for k in seen] == [(1e-7, 1e-9, 0.01)]
-    data = json.loads(out.read_text())
+    assert not out.exists()
+    data = json.loads((tmp_path / "cct.json").read_text())
     printed = capsys.readouterr().out
     assert f"{data['cct']['2']:.4f}" in printed
+    # rows by PSS/E bus number and name, and the plot beside the JSON (as the SMIB's)
+    assert data["rows"] == [
+        {
+            "bus": 2,
+            "name": data["rows"][0]["name"],
+            "cct": data["cct"]["2"],
+            "status": "found",
+        }
+    ]
+    assert (tmp_path / "cct.png").stat().st_size > 5_000
+    assert f"wrote {tmp_path / 'cct.json'} and {tmp_path / 'cct.png'}" in printed
+
+
+def test_cct_out_of_another_format_is_refused_before_the_run(tmp_path, capsys):
+    out = tmp_path / "cct.csv"
+    argv = ["cct", "--case", "smib-gencls", "--fault-buses", "2", "--out", str(out)]
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == [
+        f"smibjax: error: --out = {str(out)!r} is not allowed: must end in .json (the "
+        "CCTs are written as JSON, their plot beside them as .png)"
+    ]
+    assert not out.exists()
 
 
 def test_skip_unsupported_drops_the_records_with_one_warning(tmp_path, capsys):
@@ -294,3 +319,48 @@ def test_skip_unsupported_drops_the_records_with_one_warning(tmp_path, capsys):
     ref = tmp_path / "ref.npz"
     assert main([*run, "--case", "smib-gencls", "--out", str(ref)]) == 0
     np.testing.assert_array_equal(np.load(out)["delta"], np.load(ref)["delta"])
+
+
+@pytest.mark.parametrize("suffix", [".csv", ".mat", ".cfg"])
+def test_simulate_a_case_writes_the_format_its_out_suffix_names(
+    tmp_path, suffix, capsys
+):
+    """`--out run.csv` is a CSV table (it was an npz under a .csv name), `.mat`
+    MATLAB, `.cfg` COMTRADE with its .dat; devices by PSS/E bus number and
+    generator bus:id (issue 50)."""
+    out = tmp_path / f"run{suffix}"
+    argv = ["simulate", "--case", "smib-gencls", "--fault-bus", "2"]
+    argv += ["--fault-time", "0.2", "--clear-time", "0.3", "--t-end", "2"]
+    assert main([*argv, "--out", str(out)]) == 0
+    err = capsys.readouterr().err
+    # the phase line before the compile (issue 50: no silent wait)
+    assert (
+        "compiling the simulation of smib-gencls (3 machines, 3 buses): about 22 s "
+        "the first time, a few s once cached" in err
+    )
+    if suffix == ".csv":
+        import csv
+
+        with open(out, newline="") as fh:
+            rows = list(csv.reader(fh))
+        assert rows[0][:2] == ["t (s)", "delta_coi G 1:1 (rad)"]
+        assert "v_bus bus 2 (pu)" in rows[0] and len(rows) == 202
+        k = rows[0].index("v_bus bus 2 (pu)")
+        t = [float(r[0]) for r in rows[1:]]
+        i = int(np.searchsorted(t, 0.25))
+        assert abs(float(rows[1 + i][k])) < 1e-9  # the faulted bus during the fault
+    elif suffix == ".mat":
+        from scipy.io import loadmat
+
+        m = loadmat(out)
+        assert m["delta"].shape == (201, 3) and m["t"].shape == (201, 1)
+        assert [s.strip() for s in m["gen"]] == ["1:1", "2:1", "3:1"]
+    else:
+        cfg = out.read_bytes().decode().split("\r\n")
+        assert cfg[0] == "smib-gencls,smibjax,1999"
+        n = int(cfg[1].split(",")[0])
+        assert n == 8 * 3 + 3 and cfg[1] == f"{n},{n}A,0D"
+        assert cfg[2 + n + 2] == "100,201"  # 100 samples/s, 201 samples
+        dat = out.with_suffix(".dat").read_bytes().decode().split("\r\n")
+        assert len([r for r in dat if r]) == 201
+        assert all(len(r.split(",")) == 2 + n for r in dat if r)

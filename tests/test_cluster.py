@@ -97,7 +97,7 @@ def test_killed_worker_loses_nothing(reference, runner, tmp_path):
         read_rows(tmp_path / "dask" / "scenarios.csv")["index"], np.arange(SPEC.n)
     )
     # the nanny restarted the killed worker process
-    runner.client.wait_for_workers(2, timeout=60)
+    runner.client.wait_for_workers(2)
     assert info["victim"] not in runner.client.run(os.getpid).values()
 
 

@@ -503,3 +503,84 @@ def test_the_paper_cases_linearization_has_the_manifold_roots(beta):
     kappa = 1 / beta[0] + 1 / beta[1]
     for root in np.roots([M, float(plant.D) - kappa, -kappa]):
         assert np.min(np.abs(lam - root)) < 1e-8 * max(1.0, abs(root)), (root, lam)
+
+
+# --- the scope of a mode from its shape, and short machine lists (issue 50) -------
+
+
+def _shape(values: dict) -> dict:
+    return {g: complex(v) for g, v in values.items()}
+
+
+def test_scope_two_areas_one_group_each_is_inter_area_even_where_areas_overlap():
+    """Issue 50: a mode of two opposing groups whose areas overlap (a machine of
+    each area swinging with the other area) was 'local'; the groups' main areas
+    differ, so it is inter-area."""
+    from smibjax.grid.modes import _scope
+
+    names = ["1", "2", "3", "4", "5", "6"]
+    areas = [1, 1, 1, 2, 2, 2]
+    shape = _shape({"1": 1.0, "2": 0.9, "4": 0.3, "3": -0.25, "5": -0.8, "6": -0.7})
+    assert _scope(shape, names, areas) == "inter-area"
+    # two machines of one area against each other, the rest still: local
+    shape = _shape({"1": 1.0, "2": -0.8, "3": 0.05, "4": 0.0, "5": 0.01, "6": 0.0})
+    assert _scope(shape, names, areas) == "local"
+    # all in phase: common
+    assert _scope(_shape(dict.fromkeys(names, 1.0)), names, areas) == "common"
+
+
+def test_scope_of_a_mode_spread_over_many_machines_is_inter_area():
+    """24 of 48 machines taking part (a 0.22 Hz NPCC mode) is inter-area, even when
+    both groups' main area is the same; 3 of 48 against each other is local."""
+    from smibjax.grid.modes import _scope
+
+    names = [str(k) for k in range(48)]
+    areas = [1] * 40 + [2] * 8
+    values = {g: 0.01 for g in names}
+    for k in range(24):
+        values[str(k)] = 1.0 if k % 2 else -0.6
+    assert _scope(_shape(values), names, areas) == "inter-area"
+    values = {g: 0.01 for g in names}
+    values.update({"0": 1.0, "1": -0.5, "2": -0.4})
+    assert _scope(_shape(values), names, areas) == "local"
+
+
+def test_dominant_text_is_the_first_five_and_a_count():
+    from smibjax.grid.modes import Mode, dominant_text
+
+    shape = _shape({f"{k}:1": 1.0 - k / 30 for k in range(24)})
+    m = Mode(
+        index=0,
+        eigenvalue=complex(-0.1, 1.4),
+        frequency=0.22,
+        damping=0.07,
+        kind="electromechanical",
+        scope="inter-area",
+        dominant=(),
+        shape=shape,
+    )
+    assert dominant_text(m) == "0:1, 1:1, 2:1, 3:1, 4:1 and 19 more"
+    small = Mode(**{**m.__dict__, "shape": _shape({"1:1": 1.0, "2:1": -0.5})})
+    assert dominant_text(small) == "1:1, 2:1"
+
+
+def test_active_limits_names_a_governor_sitting_on_its_valve_limit():
+    """Issue 50: on ANDES's IEEE 14 a governor sits exactly on its lower limit, which
+    the linearization and another program treat differently; `active_limits` names
+    each such limiter. Kundur's TGOV1 at 1:1 with VMIN moved onto its valve
+    position is found (and only it); with VMIN back below, nothing is."""
+    from smibjax.grid.loop import state_labels
+    from smibjax.grid.modes import active_limits
+    from smibjax.grid.params import set_params
+
+    case = load_case("kundur")
+    op, _ = operating_point(case)
+    assert active_limits(case, op) == []
+    k = state_labels(case).index(("TGOV1", "1:1", "x_v"))
+    xv = float(op.y0[k])
+    on = set_params(case, {"TGOV1[1:1].VMIN": xv})
+    op_on, _ = operating_point(on)
+    assert float(op_on.y0[k]) == pytest.approx(xv, rel=1e-12)
+    assert active_limits(on, op_on) == [("TGOV1", "1:1", "x_v", "VMIN", xv)]
+    off = set_params(case, {"TGOV1[1:1].VMIN": xv - 1e-3})
+    assert active_limits(off, operating_point(off)[0]) == []

@@ -87,9 +87,7 @@ def test_validation_compiles_nothing():
         "import sys; print('PROBE', file=sys.stderr, flush=True)\n"
         "jax.numpy.asarray(2.0) > 1.0  # one eager comparison: the log works\n"
     )
-    p = subprocess.run(
-        [sys.executable, "-c", code], capture_output=True, text=True, timeout=120
-    )
+    p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert p.returncode == 0, p.stderr[-2000:]
     before, after = (
         [

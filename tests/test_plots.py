@@ -181,3 +181,165 @@ def test_compare_figure_beyond_the_window_is_not_a_joined_point(monkeypatch):
     xb = next(line for line in ax.lines if line.get_label() == "b").get_xdata()
     assert not np.allclose(curve.get_xdata(), xb)
     assert fig.axes[2].get_ylabel() == "mean time on a limit (%)"
+
+
+# --- multi-machine figures (issue 50) ---------------------------------------------
+
+
+def _grid_run(n_gen=48, n_bus=60, swing=(5, 17, 30, 41, 2, 11, 23), vs_scale=1.0):
+    """A synthetic `simulate --case` run: machine k swings by 1 + k/100 deg except
+    the `swing` machines (40, 39, ... deg, in that order); bus 7 (column 6) dips to 0
+    during the fault (1-1.1 s), bus 13 (column 12) stays lowest afterwards."""
+    t = np.linspace(0.0, 5.0, 501)
+    amp = 1.0 + np.arange(n_gen) / 100.0
+    for rank, k in enumerate(swing):
+        amp[k] = 40.0 - rank
+    osc = np.where(t > 1.0, np.sin(4 * (t - 1.0)) * np.exp(-(t - 1.0)), 0.0)
+    delta = np.radians(10.0 + amp[None, :] * osc[:, None])
+    v_bus = 1.0 + 0.02 * np.sin(np.arange(n_bus))[None, :] + 0 * t[:, None]
+    v_bus[(t >= 1.0) & (t < 1.1), 6] = 0.0
+    v_bus[t >= 1.1, 12] = 0.9
+    ones = np.ones((t.size, n_gen))
+    return {
+        "t": t,
+        "gen": np.array([f"{k + 1}:1" for k in range(n_gen)]),
+        "bus": np.arange(1, n_bus + 1),
+        "delta_coi": delta,
+        "omega": 1e-3 * osc[:, None] * amp[None, :],
+        "pe": ones + 0.1 * osc[:, None],
+        "pm": ones,
+        "efd": 2 * ones,
+        "vs": vs_scale * 0.05 * osc[:, None] * ones,
+        "vt": ones,
+        "v_bus": v_bus,
+    }
+
+
+EVENTS = [
+    (1.0, "fault at bus 7 at 1 s"),
+    (1.1, "clear: fault at bus 7 removed at 1.1 s"),
+]
+
+
+def _legend_texts(fig):
+    return [t.get_text() for leg in fig.legends for t in leg.get_texts()]
+
+
+def test_a_48_machine_run_names_the_largest_swings_and_bands_the_rest(captured):
+    plotting.plot_grid_run(_grid_run(), "x.png", "npcc-like", events=EVENTS)
+    fig = captured[-1]
+    entries = _legend_texts(fig)
+    # the six largest swings, largest first, then the band and the events
+    assert entries[:6] == ["G 6:1", "G 18:1", "G 31:1", "G 42:1", "G 3:1", "G 12:1"]
+    assert "other 42 machines" in entries
+    assert entries[-2:] == [e[1] for e in EVENTS]
+    assert fig.legends[0].get_title().get_text() == (
+        "6 of 48 machines: largest angle swings"
+    )
+    # one legend, outside the axes: no axes legend on the machine panels
+    axes = fig.axes
+    assert all(ax.get_legend() is None for ax in axes[:7])
+    right = max(ax.get_position().x1 for ax in axes)
+    assert right < 0.82  # the legend's column (bbox at x = 0.81) is free
+    labels = [ax.get_ylabel() for ax in axes]
+    assert labels[0] == "angle - COI (deg)"
+    assert all("(" in lab and lab.endswith(")") for lab in labels)  # units on each
+    assert any("Pm" in lab for lab in labels) and any("Vs" in lab for lab in labels)
+    for ax in axes:  # six lines per machine panel; event lines at 1 and 1.1 s
+        assert _event_lines(ax) == [1.0, 1.1]
+    for ax in axes[:7]:
+        assert len(ax.collections) == 1  # the band of the 42 others
+        assert len([ln for ln in ax.lines if ln.get_linestyle() == "-"]) == 6
+    # the angle panel in degrees: the largest swing peaks near 40 * 0.6 deg + 10
+    top = max(np.nanmax(ln.get_ydata()) for ln in axes[0].lines[:6])
+    assert 30 < top < 40
+    # the bus panel names the lowest bus after clearing (13), the highest, the
+    # lowest overall (7, the faulted bus)
+    bus_legend = [t.get_text() for t in axes[7].get_legend().get_texts()]
+    assert "bus 13: lowest after 1.1 s" in bus_legend
+    assert "bus 7: lowest" in bus_legend
+    assert any(s.endswith(": highest") for s in bus_legend)
+
+
+def test_a_four_machine_run_draws_every_machine_without_a_band(captured):
+    a = _grid_run(n_gen=4, n_bus=13, swing=(2,))
+    plotting.plot_grid_run(a, "x.png", "kundur-like", events=EVENTS)
+    fig = captured[-1]
+    entries = _legend_texts(fig)
+    assert entries[:4] == ["G 1:1", "G 2:1", "G 3:1", "G 4:1"]  # column order
+    assert not any(e.startswith("other") for e in entries)
+    assert all(len(ax.collections) == 0 for ax in fig.axes[:7])
+
+
+def test_a_case_without_stabilizers_says_so_on_the_vs_panel(captured):
+    plotting.plot_grid_run(_grid_run(vs_scale=0.0), "x.png", "t", events=EVENTS)
+    ax = next(ax for ax in captured[-1].axes if "Vs" in ax.get_ylabel())
+    assert [t.get_text() for t in ax.texts] == [
+        "zero throughout (no stabilizer in this case)"
+    ]
+
+
+def test_the_tuners_before_after_figure_shares_its_y_axes(captured):
+    """A three-fold larger stabilizer output after tuning shows as a three-fold
+    taller curve on the same axis, not only in the tick labels (issue 50)."""
+    sw = (5, 2, 0, 1, 3, 4)
+    before = _grid_run(n_gen=10, swing=sw)
+    after = _grid_run(n_gen=10, swing=sw, vs_scale=3.0)
+    plotting.plot_grid_compare({"start": before, "tuned": after}, "x.png", "", EVENTS)
+    fig = captured[-1]
+    axs = np.array(fig.axes).reshape(4, 2)
+    for r in range(4):
+        assert axs[r, 0].get_ylim() == axs[r, 1].get_ylim()
+    assert axs[0, 0].get_ylabel() == "angle - COI (deg)"
+    vs_peak = [max(np.nanmax(ln.get_ydata()) for ln in ax.lines[:6]) for ax in axs[3]]
+    assert vs_peak[1] == pytest.approx(3 * vs_peak[0])
+    assert axs[3, 1].get_ylim()[1] >= vs_peak[1]
+    entries = _legend_texts(fig)
+    assert entries[:6] == ["G 6:1", "G 3:1", "G 1:1", "G 2:1", "G 4:1", "G 5:1"]
+    assert "other 4 machines" in entries
+    for ax in fig.axes:
+        assert _event_lines(ax) == [1.0, 1.1]
+
+
+def test_the_case_cct_chart_names_buses_shortest_first(captured):
+    rows = [
+        {"bus": 7, "name": "", "cct": 0.21, "status": "found"},
+        {"bus": 3, "name": "", "cct": None, "status": "exceeds_max"},
+        {"bus": 9, "name": "", "cct": 0.0, "status": "unstable_at_min"},
+        {"bus": 1, "name": "", "cct": 0.12, "status": "found"},
+    ]
+    plotting.plot_case_cct(rows, 1.0, "x.png", "t")
+    ax = captured[-1].axes[0]
+    assert [t.get_text() for t in ax.get_xticklabels()] == ["9", "1", "7", "3"]
+    heights = [p.get_height() for p in ax.patches]
+    assert heights == [0.12, 0.21, 1.0]  # the last: hatched, stable at 1 s
+    assert ax.patches[-1].get_hatch() == "//"
+    crosses = [ln for ln in ax.lines if ln.get_marker() == "x"]
+    assert len(crosses) == 1 and list(crosses[0].get_xdata()) == [0]
+    assert ax.get_ylabel() == "critical clearing time (s)"
+
+
+def test_the_case_compare_figure_has_a_curve_per_set(captured):
+    rng = np.random.default_rng(0)
+    rows = {
+        k: {
+            "stable": np.array([True, True, False, True]),
+            "settling_angle": rng.uniform(1, 3, 4),
+            "overshoot": rng.uniform(0.1, 0.3, 4),
+        }
+        for k in ("case", "heavy")
+    }
+    ccts = {
+        "case": {"cct": {2: 0.2, 5: 0.1, 8: None}},
+        "heavy": {"cct": {2: 0.3, 5: 0.2, 8: 0.4}},
+    }
+    plotting.plot_case_compare(rows, ccts, "x.png")
+    fig = captured[-1]
+    assert len(fig.axes) == 3
+    legend = [t.get_text() for t in fig.axes[0].get_legend().get_texts()]
+    assert legend == ["case (3 of 4 stable)", "heavy (3 of 4 stable)"]
+    assert fig.axes[1].get_xlabel() == "first-swing overshoot (deg)"
+    ax = fig.axes[2]
+    assert [t.get_text() for t in ax.get_xticklabels()] == ["5", "2", "8"]
+    ys = [list(ln.get_ydata()) for ln in ax.lines]
+    assert ys[0][:2] == [0.1, 0.2] and np.isnan(ys[0][2]) and ys[1] == [0.2, 0.3, 0.4]

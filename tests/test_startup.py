@@ -315,3 +315,136 @@ def _damaged_stored_program_falls_back_silently(cache: Path, cwd: Path, out) -> 
     assert _simulate_child([*out, "bad.npz"], cache, cwd)[0] == "traced"
     _same_bits(cwd / "b.npz", cwd / "cut.npz")
     _same_bits(cwd / "b.npz", cwd / "bad.npz")
+
+
+@pytest.mark.parametrize(
+    "argv, needle",
+    [
+        (
+            ["simulate", "--case", "no/such.raw", "--dyr", "x.dyr", "--fault-bus", "1"],
+            "--case 'no/such.raw': no such file",
+        ),
+        (
+            [
+                "simulate",
+                "--case",
+                "README.md",
+                "--dyr",
+                "README.md",
+                "--fault-bus",
+                "1",
+            ],
+            "not a PSS/E raw file",
+        ),
+        (
+            [
+                "modes",
+                "--case",
+                "src/smibjax/grid/cases/kundur.raw",
+                "--dyr",
+                "README.md",
+            ],
+            "not a PSS/E dyr file",
+        ),
+        (
+            [
+                "cct",
+                "--case",
+                "src/smibjax/grid/cases/kundur.raw",
+                "--dyr",
+                "docs/figures",
+            ],
+            "must be a PSS/E dyr file (a file)",
+        ),
+        (["simulate", "--out", "run.txt"], "the suffix must be one of .npz"),
+        (["simulate", "--case", "kundur", "--out", "r.xlsx"], "suffix must be one"),
+    ],
+)
+def test_bad_files_and_outputs_are_refused_before_jax_loads(argv, needle):
+    """A nonexistent or foreign --case/--dyr file and an --out of no known format
+    are one line, exit 2, before JAX, equinox or matplotlib load (they took 12-37 s
+    of start-up before the refusal, issue 50)."""
+    code = (
+        "import sys\nfrom smibjax.cli import main\n"
+        f"rc = main({argv!r})\nprint('RC:', rc)"
+    )
+    env = {**os.environ, "PYTHONPATH": f"{ROOT / 'src'}:{ROOT}"}
+    probe = code + (
+        f"\nprint('LOADED:' + ','.join(m for m in {HEAVY!r} if m in sys.modules))"
+    )
+    r = subprocess.run(
+        [sys.executable, "-c", probe], capture_output=True, text=True, cwd=ROOT, env=env
+    )
+    out = r.stdout.strip().splitlines()
+    assert out[-2] == "RC: 2" and out[-1] == "LOADED:", r.stdout + r.stderr
+    err = r.stderr.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("smibjax: error: "), r.stderr
+    assert needle in err[0]
+
+
+def test_the_built_in_and_andes_case_files_pass_the_early_check():
+    """The jax-free look at a raw/dyr file accepts every case file smibjax ships."""
+    import argparse
+
+    from smibjax.cli.grid import precheck_case
+
+    cases = ROOT / "src" / "smibjax" / "grid" / "cases"
+    raws = sorted(cases.glob("*.raw"))
+    assert raws
+    for raw in raws:
+        for dyr in sorted(cases.glob("*.dyr")):
+            precheck_case(argparse.Namespace(case=str(raw), dyr=str(dyr)))
+    precheck_case(argparse.Namespace(case="kundur", dyr=None))  # a built-in name
+
+
+ALARM = (
+    b"E1203 13:50:02.123456  4242 slow_operation_alarm.cc:140] \n"
+    b"********************************\n"
+    b"[Compiling module jit_simulate_jit] Very slow compile? If you want to file a "
+    b"bug, run with envvar XLA_FLAGS=--xla_dump_to=/tmp/foo and attach the results.\n"
+    b"********************************\n"
+)
+
+
+def test_xlas_slow_compile_alarm_becomes_a_line_of_ours():
+    from smibjax._commandline import explain_xla_alarm
+
+    out = explain_xla_alarm(b"before\n" + ALARM + b"after\n").decode()
+    assert "Very slow compile" not in out and "****" not in out
+    assert "slow_operation_alarm" not in out
+    lines = out.split("\n")
+    assert lines[0] == "before" and lines[2:] == ["after", ""]  # in its place
+    assert lines[1].startswith("smibjax: still compiling jit_simulate_jit (XLA notes")
+    assert explain_xla_alarm(b"a progress bar\r") == b"a progress bar\r"  # untouched
+
+
+def test_the_alarm_written_to_fd_2_by_anyone_is_replaced_and_the_rest_kept():
+    """The alarm comes from XLA's C++ logging on file descriptor 2, not through
+    sys.stderr: a process writes it there (and Python's own lines) inside the
+    filter; what reaches the real stderr is ours, in order, and nothing is lost."""
+    code = (
+        "import os, sys\n"
+        "from smibjax._commandline import xla_alarms_explained\n"
+        "with xla_alarms_explained():\n"
+        "    print('first', file=sys.stderr, flush=True)\n"
+        f"    os.write(2, {ALARM!r})\n"
+        "    sys.stderr.write('bar 50%\\r'); sys.stderr.flush()\n"
+        "    print('last', file=sys.stderr, flush=True)\n"
+        "print('after', file=sys.stderr, flush=True)\n"
+    )
+    env = {**os.environ, "PYTHONPATH": f"{ROOT / 'src'}:{ROOT}"}
+    r = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, cwd=ROOT, env=env
+    )
+    assert r.returncode == 0, r.stderr
+    err = r.stderr.decode()
+    assert "Very slow compile" not in err
+    assert err.split("\n") == [
+        "first",
+        "smibjax: still compiling jit_simulate_jit (XLA notes a slow compile: not an "
+        "error; a large case's first compile takes minutes on a small CPU, then it is "
+        "cached)",
+        "bar 50%\rlast",
+        "after",
+        "",
+    ]

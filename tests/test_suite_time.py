@@ -125,7 +125,6 @@ def test_profiler_plugin_records_each_test_and_its_compiles(tmp_path):
         env=env,
         capture_output=True,
         text=True,
-        timeout=300,
     )
     assert p.returncode == 0, p.stdout[-2000:] + p.stderr[-2000:]
     prof = json.loads((out / "controller.json").read_text())

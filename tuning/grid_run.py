@@ -360,41 +360,38 @@ def _physics(problem, raw, tr) -> dict:
 
 
 def _plot(path: Path, problem, trs: dict, bus: int):
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    from smibjax._files import atomic_write
+    """The before/after trajectories of the report's fault (`plot_grid_compare`):
+    angles from the centre of inertia (deg), speeds, Efd and Vs on shared y axes
+    per row, the same machines in the same colours in every column."""
+    from smibjax.cli.plotting import plot_grid_compare
     from smibjax.grid.loop import gen_names
     from smibjax.grid.simulate import coi_angles
 
     from .grid_problem import _machine_mask
 
     mask = _machine_mask(problem.case)
-    names = gen_names(problem.case)
-    fig, axes = plt.subplots(4, len(trs), figsize=(5.5 * len(trs), 10), squeeze=False)
-    for col, (label, tr) in enumerate(trs.items()):
-        ts = np.asarray(tr.ts)
+    names = np.asarray(gen_names(problem.case))[mask]
+    runs = {}
+    for label, tr in trs.items():
         rel = np.asarray(coi_angles(problem.case, tr.delta, jnp.asarray(mask * 1.0)))
-        for g in range(problem.case.n_gen):
-            if not mask[g]:
-                continue
-            axes[0, col].plot(ts, np.degrees(rel[:, g]), label=names[g])
-            axes[1, col].plot(ts, np.asarray(tr.omega)[:, g], label=names[g])
-            axes[2, col].plot(ts, np.asarray(tr.efd)[:, g], label=names[g])
-            axes[3, col].plot(ts, np.asarray(tr.vs)[:, g], label=names[g])
-        axes[0, col].set_title(f"{label}: bus {bus} fault")
-        for row, yl in enumerate(
-            ("angle - COI (deg)", "speed dev. (pu)", "Efd (pu)", "PSS Vs (pu)")
-        ):
-            axes[row, col].set_ylabel(yl)
-            axes[row, col].grid(alpha=0.3)
-        axes[3, col].set_xlabel("t (s)")
-        axes[0, col].legend(fontsize=7)
-    fig.tight_layout()
-    atomic_write(path, lambda tmp: fig.savefig(tmp, dpi=90, format="png"))
-    plt.close(fig)
+        runs[label] = {
+            "t": np.asarray(tr.ts),
+            "gen": names,
+            "delta_coi": rel[:, mask],
+            "omega": np.asarray(tr.omega)[:, mask],
+            "efd": np.asarray(tr.efd)[:, mask],
+            "vs": np.asarray(tr.vs)[:, mask],
+        }
+    t_clear = 0.5 + float(problem.cfg["report"]["clear_after"])
+    plot_grid_compare(
+        runs,
+        path,
+        f"{problem.case.name}: bolted fault at bus {bus}",
+        events=[
+            (0.5, f"fault at bus {bus} at 0.5 s"),
+            (t_clear, f"clear: fault removed at {t_clear:g} s"),
+        ],
+    )
 
 
 def _fmt(x, spec=".3f"):

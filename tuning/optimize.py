@@ -107,6 +107,14 @@ def main(argv=None) -> int:
     from smibjax import configure
 
     configure()  # before anything imports equinox or JAX
+    from smibjax._commandline import xla_alarms_explained
+
+    with xla_alarms_explained():  # XLA's slow-compile alarm as a line of ours
+        return _main(args)
+
+
+def _main(args) -> int:
+    """`main` after the parse and the process set-up."""
     from smibjax import ParameterError
     from smibjax._files import check_out_folder, write_json
 

@@ -24,6 +24,8 @@ __all__ = [
     "progress_bars",
     "say_compiling",
     "announce_compile",
+    "xla_alarms_explained",
+    "explain_xla_alarm",
 ]
 
 
@@ -268,3 +270,79 @@ def announce_compile(what: str, *programs: str, file=None):
         yield
     finally:
         jax.monitoring.unregister_event_duration_listener(listener)
+
+
+_ALARM = b"Very slow compile?"
+
+
+def explain_xla_alarm(chunk: bytes) -> bytes:
+    """`chunk` (bytes written to stderr) with XLA's slow-compile alarm (its log
+    line, the `*` banner around it and "[Compiling module M] Very slow compile? If
+    you want to file a bug, ...", which reads like a crash) replaced, where it
+    stood, by one line of ours naming the program; any other byte is passed through
+    unchanged."""
+    if _ALARM not in chunk:
+        return chunk
+    import re
+
+    keep = []
+    for line in chunk.split(b"\n"):
+        text = line.strip()
+        if _ALARM in line:
+            m = re.search(rb"\[Compiling module ([^\]]+)\]", line)
+            module = m.group(1).decode(errors="replace") if m else "a program"
+            keep.append(
+                f"smibjax: still compiling {module} (XLA notes a slow compile: not "
+                "an error; a large case's first compile takes minutes on a small CPU, "
+                "then it is cached)".encode()
+            )
+        elif b"slow_operation_alarm" in line or (text and set(text) == {ord("*")}):
+            continue
+        else:
+            keep.append(line)
+    return b"\n".join(keep)
+
+
+@contextlib.contextmanager
+def xla_alarms_explained():
+    """Within the block, everything written to file descriptor 2 (stderr: Python's,
+    XLA's C++ log, child processes') passes through `explain_xla_alarm` on a thread
+    (each write forwarded at once: progress bars' '\\r' drawing is not held back).
+    Restored, with every byte forwarded, when the block ends. Does nothing where
+    stderr has no file descriptor (a captured stream)."""
+    import threading
+
+    try:
+        fd = sys.stderr.fileno()
+    except (AttributeError, OSError, ValueError):
+        yield
+        return
+    sys.stderr.flush()
+    saved = os.dup(fd)
+    r, w = os.pipe()
+    os.dup2(w, fd)
+    os.close(w)
+
+    def pump():
+        while True:
+            chunk = os.read(r, 65536)
+            if not chunk:
+                break
+            data = explain_xla_alarm(chunk)
+            while data:
+                data = data[os.write(saved, data) :]
+
+    t = threading.Thread(target=pump, name="smibjax-stderr", daemon=True)
+    t.start()
+    try:
+        yield
+    finally:
+        try:
+            sys.stderr.flush()
+        except (OSError, ValueError):
+            pass
+        os.dup2(saved, fd)  # the pipe's last write end closes: the pump drains, ends
+        t.join(timeout=5)  # (a child process still holding the pipe keeps it open)
+        if not t.is_alive():
+            os.close(r)
+        os.close(saved)

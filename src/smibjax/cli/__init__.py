@@ -51,6 +51,18 @@ def run() -> None:
     sys.exit(code)
 
 
+def precheck(args) -> None:
+    """The checks that need no JAX, run before the process is configured: a --case
+    or --dyr file that does not exist or is foreign (`grid.precheck_case`), and the
+    command's own (`args.precheck`, e.g. `simulate --out`'s format); CLIError."""
+    from .grid import precheck_case
+
+    precheck_case(args)
+    own = getattr(args, "precheck", None)
+    if own is not None:
+        own(args)
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point; returns the exit status. The command line is parsed first (no
     JAX: `--help` and usage errors answer at once), then the process is configured
@@ -63,6 +75,11 @@ def main(argv: list[str] | None = None) -> int:
     except CLIError as e:
         print(f"smibjax: error: {e}", file=sys.stderr)
         return 2
+    try:  # bad files and flags refused before JAX starts (it takes seconds)
+        precheck(args)
+    except CLIError as e:
+        print(f"smibjax: error: {e}", file=sys.stderr)
+        return 2
     from .._process import configure
 
     try:
@@ -70,10 +87,12 @@ def main(argv: list[str] | None = None) -> int:
     except ValueError as e:  # a bad SMIBJAX_CACHE_MIN_COMPILE_S
         print(f"smibjax: error: {e}", file=sys.stderr)
         return 2
+    from .._commandline import xla_alarms_explained
     from .._parameters import ParameterError
 
     try:
-        return args.func(args)
+        with xla_alarms_explained():
+            return args.func(args)
     except CLIError as e:
         print(f"smibjax: error: {e}", file=sys.stderr)
         return 2

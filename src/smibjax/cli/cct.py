@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import sys
 import warnings
+from pathlib import Path
 
 from .._commandline import UNNAMED, out_path
 from .grid import add_case_options
@@ -87,7 +88,7 @@ def add_parser(sub) -> None:
         default=1.0,
         help="with --case: the longest fault duration tried (s, default 1)",
     )
-    c.set_defaults(func=run, flags=c.flags)
+    c.set_defaults(func=run, flags=c.flags, precheck=precheck)
 
 
 def check_args(args) -> None:
@@ -189,9 +190,31 @@ def progress_bar(desc: str = "cct scan + bisection", make=None):
 
 
 def output(args):
-    """The --out file: as named, a new one under `OUTPUT_ROOT` for `--out` alone
-    (runs/cct-<time>.json), else None."""
-    return out_path(args.out, "cct", ".json", default=False)
+    """The --out file: as named (`json_name`: .json appended without a suffix), a
+    new one under `OUTPUT_ROOT` for `--out` alone (runs/cct-<time>.json), else
+    None."""
+    out = out_path(args.out, "cct", ".json", default=False)
+    return None if out is None else json_name(out)
+
+
+def json_name(path) -> Path:
+    """`path` with `.json` appended when it has no suffix; any suffix but .json is a
+    one-line CLIError (the CCTs are JSON, the plot goes beside them as .png)."""
+    p = Path(path)
+    if not p.suffix:
+        return p.with_name(p.name + ".json")
+    if p.suffix.lower() != ".json":
+        raise CLIError(
+            f"--out = {str(p)!r} is not allowed: must end in .json (the CCTs are "
+            "written as JSON, their plot beside them as .png)"
+        )
+    return p
+
+
+def precheck(args) -> None:
+    """Before JAX starts: --out names a .json file (or has no suffix)."""
+    if args.out:
+        json_name(args.out)
 
 
 def run(args) -> int:

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 import sys
 import time
 from pathlib import Path
@@ -20,7 +21,14 @@ import numpy as np
 
 from .options import CLIError
 
-__all__ = ["add_case_options", "run_simulate", "run_montecarlo", "run_cct", "load"]
+__all__ = [
+    "add_case_options",
+    "precheck_case",
+    "run_simulate",
+    "run_montecarlo",
+    "run_cct",
+    "load",
+]
 
 # the largest Monte Carlo chunk of a --case run: a chunk keeps every scenario's saved
 # states (IEEE 39 at 1,001 samples: 1 MB each); the CPU time per scenario does not
@@ -41,6 +49,72 @@ def load_case_reporting(name_or_raw, dyr=None, skip_unsupported=False):
     for w in caught:
         print(f"smibjax: warning: {w.message}", file=sys.stderr)
     return case
+
+
+_SNIFF_BYTES = 1 << 16
+
+
+def _text_head(path: Path, flag: str, kind: str) -> list[str]:
+    """The first lines of a file that must exist and be text (no NUL byte in its
+    first 64 KiB); CLIError (one line) otherwise."""
+    if not path.exists():
+        raise CLIError(f"{flag} {str(path)!r}: no such file")
+    if not path.is_file():
+        raise CLIError(
+            f"{flag} {str(path)!r} is not allowed: must be a {kind} (a file)"
+        )
+    with open(path, "rb") as fh:
+        head = fh.read(_SNIFF_BYTES)
+    if b"\x00" in head:
+        raise CLIError(
+            f"{flag} {str(path)!r} is not allowed: must be a {kind} (this is a binary "
+            "file)"
+        )
+    return head.decode("utf-8", errors="replace").splitlines()
+
+
+def _looks_like_raw(lines: list[str]) -> bool:
+    """The first line is a PSS/E case identification: IC (0 or 1), SBASE (a number)
+    and REV (an integer), comma- or blank-separated, before any '/' comment."""
+    if not lines:
+        return False
+    fields = [f for f in re.split(r"[,\s]+", lines[0].split("/")[0].strip()) if f]
+    try:
+        ic, rev = int(fields[0]), int(fields[2])
+        float(fields[1])
+    except (IndexError, ValueError):
+        return False
+    return ic in (0, 1) and rev > 0
+
+
+_DYR_RECORD = re.compile(r"^\s*\d+\s*[,\s]\s*'[^']+'")
+
+
+def precheck_case(args) -> None:
+    """Refuse a --case or --dyr file that does not exist or is not what it should
+    be (a PSS/E raw file, a dyr file) in one line, before JAX is imported (the full
+    reader, with every record checked, runs after). A --case that is not a file
+    name (no .raw suffix, no such path) is left to the case loader (built-in
+    names)."""
+    case, dyr = getattr(args, "case", None), getattr(args, "dyr", None)
+    if not case:
+        return
+    p = Path(case)
+    if not dyr and (p.suffix.lower() == ".raw" or p.is_file()):
+        raise CLIError(f"{case}: a raw file needs its dyr file (--dyr)")  # as load_case
+    if p.suffix.lower() == ".raw" or p.exists() or dyr:
+        if not _looks_like_raw(_text_head(p, "--case", "PSS/E raw file")):
+            raise CLIError(
+                f"--case {str(p)!r} is not allowed: not a PSS/E raw file (its first "
+                "line is not a case identification IC, SBASE, REV, ...)"
+            )
+    if dyr:
+        lines = _text_head(Path(dyr), "--dyr", "PSS/E dyr file")
+        if not any(_DYR_RECORD.match(line) for line in lines[:400]):
+            raise CLIError(
+                f"--dyr {str(dyr)!r} is not allowed: not a PSS/E dyr file (no record "
+                "BUS 'MODEL' ... in its first lines)"
+            )
 
 
 def add_case_options(p, events: bool = True) -> None:
@@ -243,6 +317,36 @@ def _gen_position(case, spec: str) -> int:
     return names.index(name)
 
 
+def _size(case) -> str:
+    """ "npcc (48 machines, 140 buses)"."""
+    return f"{case.name} ({case.n_gen} machines, {case.system.n_bus} buses)"
+
+
+COMPILE_S = (20.0, 0.5)
+"""A first compile of a case's simulation takes about a + b * machines seconds on a
+2-core CPU (measured: Kundur's 4 machines 21 CPU-s, NPCC's 48 machines 31 CPU-s,
+`simulate --case` at load 3, 2026-12-03)."""
+
+
+def compile_s(case, factor: float = 1.0) -> float:
+    """The expected first compile time (s) of a program over `case` (`COMPILE_S`),
+    times `factor` for a larger program (a batch with its metrics)."""
+    a, b = COMPILE_S
+    return factor * (a + b * case.n_gen)
+
+
+def say_phase(what: str, program: str, seconds: float) -> None:
+    """The line before a compile: 'compiling WHAT: about N s the first time, a few s
+    once cached' (or, without a compilation cache, 'about N s')."""
+    from .._process import cache_state
+
+    if cache_state(program) == "off":
+        text = f"about {seconds:.0f} s (no compilation cache)"
+    else:
+        text = f"about {seconds:.0f} s the first time, a few s once cached"
+    print(f"compiling {what}: {text}", file=sys.stderr, flush=True)
+
+
 def _solver_kw(args) -> dict:
     """The horizon, sampling and tolerances of a run, from the command line."""
     return dict(t_end=args.t_end, dt_save=args.dt_save, rtol=args.rtol, atol=args.atol)
@@ -294,16 +398,18 @@ def _event_text(case, ev) -> str:
 
 
 def run_simulate(args) -> int:
-    """`simulate --case`: one run; summary, npz (per-generator and per-bus arrays with
-    their ids), plot of every machine."""
+    """`simulate --case`: one run; summary, the trajectory (per-generator and per-bus
+    arrays with their PSS/E ids) in the format of the --out suffix, the plot."""
     import jax.numpy as jnp
 
-    from .._files import check_new_file, write_npz
+    from .._export import grid_columns, write_trajectory
+    from .._files import check_new_file
     from ..grid.loop import gen_names
     from ..grid.metrics import grid_metrics
     from ..grid.simulate import coi_angles, simulate_jit
+    from .simulate import check_out
 
-    out = check_new_file(args.out, args.force, "--out") if args.out else None
+    out = check_out(args.out, args.force) if args.out else None
     plot = None
     if args.plot:
         from .._figures import check_plot_path
@@ -313,7 +419,7 @@ def run_simulate(args) -> int:
     ev = events_from_args(case, args)
     print(_describe(case, pf), file=sys.stderr)
     print(f"events: {_event_text(case, ev)}", file=sys.stderr)
-    print("compiling and running ...", file=sys.stderr)
+    say_phase(f"the simulation of {_size(case)}", "jit_simulate_jit", compile_s(case))
     t0 = time.perf_counter()
     tr = simulate_jit(case, op, ev, **_solver_kw(args))
     t_first = min(float(e.switches()[0]) for e in ev)
@@ -374,50 +480,76 @@ def run_simulate(args) -> int:
         ),
     }
     if out:
-        write_npz(out, arrays)
-        print(f"wrote {out}")
+        written = write_trajectory(
+            out,
+            arrays,
+            grid_columns(arrays),
+            station=case.name,
+            frequency=float(case.system.f_base),
+            trigger=t_first,
+        )
+        print(f"wrote {', '.join(str(w) for w in written)}")
     if plot:
         plot_case(arrays, ev, case, plot)
         print(f"wrote {plot}")
     return 0
 
 
-def plot_case(a: dict, ev, case, path) -> None:
-    """Every machine's COI angle, speed, field voltage and electrical power, and the
-    bus voltages, with the event times marked."""
-    from .._figures import save_figure, subplots
+def event_marks(case, ev) -> list[tuple[float, str]]:
+    """The switchings of `ev` as (t (s), text) for a figure, buses and lines by
+    their PSS/E numbers, generators by bus:id; switchings at one instant share one
+    entry (a line fault cleared by opening its line: "clear: open 7-8 at 1.1 s")."""
+    from ..grid.events import BranchClose, BranchTrip, BusFault, GenTrip, LineFault
+    from ..grid.loop import gen_names
 
-    fig, axs = subplots(3, 2, figsize=(12, 9), sharex=True)
-    t = a["t"]
-    panels = [
-        ("delta_coi", "angle - COI (rad)"),
-        ("omega", "speed deviation (pu)"),
-        ("efd", "field voltage Efd (pu)"),
-        ("pe", "electrical power (pu machine base)"),
-        ("vt", "terminal voltage (pu)"),
-    ]
-    for ax, (key, label) in zip(axs.flat, panels, strict=False):
-        for i, g in enumerate(a["gen"]):
-            ax.plot(t, a[key][:, i], lw=1, label=f"G {g}")
-        ax.set_ylabel(label)
-        ax.grid(alpha=0.3)
-    ax = axs.flat[5]
-    vb = a["v_bus"]
-    ax.fill_between(
-        t, np.nanmin(vb, axis=1), np.nanmax(vb, axis=1), alpha=0.3, label="range"
+    num = np.asarray(case.system.buses.number)
+    br = case.system.branches
+
+    def line(k):
+        return f"{num[br.fr[int(k)]]}-{num[br.to[int(k)]]}"
+
+    marks: list[tuple[float, str]] = []
+    for e in ev:
+        if isinstance(e, BusFault):
+            marks += [
+                (float(e.t_on), f"fault at bus {num[int(e.bus)]}"),
+                (float(e.t_off), f"clear: fault at bus {num[int(e.bus)]} removed"),
+            ]
+        elif isinstance(e, LineFault):
+            marks += [
+                (float(e.t_on), f"fault on {line(e.branch)} at {float(e.frac):g}"),
+                (float(e.t_off), "clear: fault removed"),
+            ]
+        elif isinstance(e, BranchTrip):
+            marks.append((float(e.t), f"open {line(e.branch)}"))
+        elif isinstance(e, BranchClose):
+            marks.append((float(e.t), f"reclose {line(e.branch)}"))
+        elif isinstance(e, GenTrip):
+            marks.append((float(e.t), f"trip G {gen_names(case)[int(e.gen)]}"))
+    merged: dict[float, list[str]] = {}
+    for t, text in sorted(marks, key=lambda m: m[0]):
+        merged.setdefault(round(t, 9), []).append(text)
+    out = []
+    for t, texts in merged.items():
+        if texts[0] == "clear: fault removed" and len(texts) > 1:
+            texts = ["clear: " + texts[1], *texts[2:]]
+        out.append((t, "; ".join(texts) + f" at {t:g} s"))
+    return out
+
+
+def plot_case(a: dict, ev, case, path) -> None:
+    """`plotting.plot_grid_run` of a `simulate --case` run: the machines with the
+    largest swings named, the others a band, the events labelled, the buses of the
+    voltage panel named by PSS/E number and name."""
+    from .plotting import plot_grid_run
+
+    plot_grid_run(
+        a,
+        path,
+        f"{case.name}: {_event_text(case, ev)}",
+        events=event_marks(case, ev),
+        bus_names=list(case.system.buses.name) or None,
     )
-    ax.plot(t, np.nanmin(vb, axis=1), lw=1, label="lowest bus")
-    ax.set_ylabel("bus voltages (pu)")
-    ax.grid(alpha=0.3)
-    times = sorted({float(s) for e in ev for s in e.switches()})
-    for ax in axs.flat:
-        for s in times:
-            ax.axvline(s, color="k", lw=0.6, ls=":")
-    for ax in axs[-1]:
-        ax.set_xlabel("t (s)")
-    axs.flat[0].legend(fontsize=7, ncol=2)
-    fig.suptitle(f"{case.name}: {_event_text(case, ev)}", fontsize=10)
-    save_figure(fig, path)
 
 
 def _grid_distribution(case, args):
@@ -593,10 +725,15 @@ def add_montecarlo_options(p) -> None:
 def run_cct(args) -> int:
     """`cct --case`: the critical clearing time of a bolted fault at each bus of
     --fault-buses (cleared without tripping), by bisection to --tol, all buses in
-    one batch per bisection step."""
+    one batch per bisection step; with --out the JSON (rows by PSS/E bus number and
+    name) and its plot beside it (.png)."""
     from .._files import check_new_file, write_json
+    from .plotting import plot_case_cct
 
-    out = check_new_file(args.out, args.force, "--out") if args.out else None
+    out = png = None
+    if args.out:
+        out = check_new_file(args.out, args.force, "--out")
+        png = check_new_file(out.with_suffix(".png"), args.force, "--out (its plot)")
     case, op, pf = load(args)
     try:
         buses = _int_list(args.fault_buses) or [
@@ -604,20 +741,52 @@ def run_cct(args) -> int:
         ]
     except ValueError as e:
         raise CLIError(str(e)) from None
-    res = _bisect_cct(case, op, buses, args, args.cct_max)
     print(_describe(case, pf), file=sys.stderr)
+    res = _bisect_cct(case, op, buses, args, args.cct_max)
     print(f"{'bus':>6}  CCT (s)")
     for b, c in res["cct"].items():
-        text = (
-            "none (unstable at the shortest)"
-            if c == 0
-            else (f"> {args.cct_max:g}" if c is None else f"{c:.4f}")
-        )
-        print(f"{b:>6}  {text}")
+        print(f"{b:>6}  {_cct_text_of(c, args.cct_max)}")
     if out:
-        write_json(out, {"case": case.name, "params": _params(args.param), **res})
-        print(f"wrote {out}")
+        rows = cct_rows(case, res)
+        write_json(
+            out,
+            {"case": case.name, "params": _params(args.param), **res, "rows": rows},
+        )
+        plot_case_cct(
+            rows,
+            res["t_max"],
+            png,
+            f"{case.name}: critical clearing time of a bolted bus fault at "
+            f"{res['t_fault']:g} s, removed without tripping (bisection to "
+            f"{res['tol']:g} s)",
+        )
+        print(f"wrote {out} and {png}")
     return 0
+
+
+def _cct_text_of(c, t_max: float) -> str:
+    """A printed CCT: the number (4 decimals), or what it is not."""
+    if c == 0:
+        return "none (unstable at the shortest)"
+    return f"> {t_max:g}" if c is None else f"{c:.4f}"
+
+
+def cct_rows(case, res: dict) -> list[dict]:
+    """One row per fault bus of a CCT result: PSS/E bus number, its name, the CCT
+    (s; None: stable at the longest duration tried) and its status ("found",
+    "exceeds_max", "unstable_at_min")."""
+    num = [int(b) for b in np.asarray(case.system.buses.number)]
+    names = list(case.system.buses.name) or [""] * len(num)
+    name_of = dict(zip(num, (str(n).strip() for n in names), strict=False))
+    rows = []
+    for b, c in res["cct"].items():
+        status = (
+            "exceeds_max" if c is None else ("unstable_at_min" if c == 0 else "found")
+        )
+        rows.append(
+            {"bus": int(b), "name": name_of.get(int(b), ""), "cct": c, "status": status}
+        )
+    return rows
 
 
 def _variant(text: str) -> tuple[str, list[str]]:
@@ -702,7 +871,11 @@ def _bisect_cct(case, op, buses, args, t_max: float) -> dict:
     from ..grid.cct import critical_clearing_times_grid
 
     try:
-        with announce_compile("the batched CCT bisection"):
+        what = (
+            f"the batched CCT bisection of {_size(case)}: about "
+            f"{compile_s(case, 2.0):.0f} s the first time, a few s once cached"
+        )
+        with announce_compile(what):
             return critical_clearing_times_grid(
                 case,
                 op,
@@ -816,9 +989,10 @@ def run_compare(args) -> int:
     cct_text = _cct_text(args, dist)
     if cct_text.startswith("none"):
         print(f"smibjax: note: CCT column: {cct_text}", file=sys.stderr)
-    summaries, ccts = {}, {}
+    summaries, ccts, all_rows = {}, {}, {}
     for label, (a, case, op, _pf, dist, n, chunk) in loaded.items():
         rows, _ = grid_rows(case, op, dist, n, chunk, a, desc=label)
+        all_rows[label] = rows
         summaries[label] = case_summary(rows)
         if not cct_text.startswith("none"):
             ccts[label] = case_cct(case, op, a)
@@ -839,7 +1013,15 @@ def run_compare(args) -> int:
             "cct": ccts,
         },
     )
+    from .plotting import plot_case_compare
+
+    plot_case_compare(
+        all_rows,
+        ccts,
+        out / "compare.png",
+        f"Parameter sets on {case.name}: {dist_text}",
+    )
     print(f"{case.name}: {dist_text}")
     print(table)
-    print(f"wrote {out}/compare.md, compare.json")
+    print(f"wrote {out}/compare.md, compare.json, compare.png")
     return 0

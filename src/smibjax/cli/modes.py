@@ -181,6 +181,27 @@ def _operating(case, load_factor):
     return op
 
 
+def warn_active_limits(case, op) -> None:
+    """One 'smibjax: warning:' line on stderr per limiter the operating point sits
+    on (`grid.modes.active_limits`), then the convention the linearization uses
+    for them (`LIMIT_CONVENTION`) and how to linearize with the limit free."""
+    from ..grid.modes import LIMIT_CONVENTION, active_limits
+
+    found = active_limits(case, op)
+    for model, device, state, name, value in found:
+        print(
+            f"smibjax: warning: {model} {device}: {state} sits on its limit "
+            f"{name} = {value:.6g} at the operating point",
+            file=sys.stderr,
+        )
+    if found:
+        print(
+            f"smibjax: warning: {LIMIT_CONVENTION}; to linearize with a limit free, "
+            "move it off the operating point with --set MODEL[BUS:ID].PARAM=VALUE",
+            file=sys.stderr,
+        )
+
+
 def _mode_dict(m, lin):
     from ..grid.modes import dominant_machines
 
@@ -199,8 +220,9 @@ def _mode_dict(m, lin):
 
 
 def table(ms) -> str:
-    """The electromechanical modes as a text table."""
-    from ..grid.modes import dominant_machines
+    """The electromechanical modes as a text table (the dominant machines: the
+    first five and a count)."""
+    from ..grid.modes import dominant_text
 
     lines = [
         f"{'mode':>4}  {'eigenvalue (1/s)':>22}  {'f (Hz)':>7}  {'zeta (%)':>8}  "
@@ -211,7 +233,7 @@ def table(ms) -> str:
         lam = m.eigenvalue
         lines.append(
             f"{k + 1:>4}  {lam.real:>10.4f} {lam.imag:+10.4f}j  {m.frequency:>7.4f}  "
-            f"{100 * m.damping:>8.3f}  {m.scope:<10}  {', '.join(dominant_machines(m))}"
+            f"{100 * m.damping:>8.3f}  {m.scope:<10}  {dominant_text(m)}"
         )
     others = {}
     for m in ms:
@@ -475,6 +497,14 @@ def run(args) -> int:
     if sweep is not None:
         return _sweep(args, case, sets, *sweep, outs)
     op = _operating(case, args.load_factor)
+    warn_active_limits(case, op)
+    from .grid import compile_s, say_phase
+
+    say_phase(
+        f"the linearization of {case.name} ({case.n_gen} machines)",
+        "jit_jacfwd",
+        compile_s(case, 2.0),
+    )
     lin, ms = _analyse(case, op)
     print(f"case {args.case}: {lin.A.shape[0]} states")
     print(table(ms))

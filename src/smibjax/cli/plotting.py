@@ -23,6 +23,13 @@ __all__ = [
     "plot_islands",
     "subplots",
     "save_figure",
+    # multi-machine runs
+    "machines_shown",
+    "bus_extremes",
+    "plot_grid_run",
+    "plot_grid_compare",
+    "plot_case_cct",
+    "plot_case_compare",
 ]
 
 _STYLES = ["-", ":", "--", "-."]
@@ -327,5 +334,402 @@ def plot_cct(result: dict, path, title: str = "") -> None:
         title
         or "critical clearing time (^: beyond window, v: none, ring: non-monotone)"
     )
+    fig.tight_layout()
+    save_figure(fig, path)
+
+
+# --- multi-machine runs (`simulate --case`, the grid tuner's before/after) ---------
+
+SHOWN = 6
+"""The most machines a multi-machine figure draws one by one: beyond `SHOWN + 2`
+machines, the `SHOWN` with the largest angle excursions get a line and a legend
+entry, the others one light band (their range at each instant)."""
+
+_EVENT_COLORS = {
+    "fault": "firebrick",
+    "clear": "darkorange",
+    "open": "darkorange",
+    "close": "seagreen",
+    "reclose": "seagreen",
+    "trip": "purple",
+}
+
+
+def machines_shown(angles: np.ndarray, n_max: int = SHOWN) -> np.ndarray:
+    """The columns (machines) of `angles` (samples x machines, any angle unit) a
+    figure draws one by one: all of them when there are at most `n_max + 2`, else
+    the `n_max` whose angle moves furthest from its first sample (max |a(t) - a(0)|,
+    NaN ignored), largest first."""
+    a = np.asarray(angles, dtype=float)
+    n = a.shape[1]
+    if n <= n_max + 2:
+        return np.arange(n)
+    swing = np.nanmax(np.abs(a - a[:1]), axis=0, initial=0.0)
+    swing = np.where(np.isfinite(swing), swing, 0.0)
+    return np.argsort(-swing, kind="stable")[:n_max]
+
+
+def _machine_panel(ax, t, y, shown, colors, labels) -> None:
+    """Lines for the `shown` columns of `y`, the others as one light band (drawn
+    under the lines, listed after them)."""
+    y = np.asarray(y, dtype=float)
+    for i in shown:
+        ax.plot(t, y[:, i], lw=1.2, color=colors[i], label=labels[i])
+    rest = np.setdiff1d(np.arange(y.shape[1]), shown)
+    if rest.size:
+        with np.errstate(all="ignore"):
+            lo = np.nanmin(y[:, rest], axis=1)
+            hi = np.nanmax(y[:, rest], axis=1)
+        ax.fill_between(
+            t,
+            lo,
+            hi,
+            color="0.6",
+            alpha=0.3,
+            lw=0,
+            zorder=0.5,
+            label=f"other {rest.size} machines",
+        )
+    ax.grid(alpha=0.3)
+
+
+def _event_marks(ax, events, legend: bool) -> None:
+    """Dotted vertical lines at `events` [(t (s), text)], coloured by the first
+    word of the text (fault, clear/open, close, trip)."""
+    for t, text in events:
+        word = text.split()[0] if text.split() else ""
+        color = next((c for k, c in _EVENT_COLORS.items() if word.startswith(k)), "k")
+        ax.axvline(t, color=color, ls=":", lw=1.1, label=f"{text}" if legend else None)
+
+
+def _change(y) -> np.ndarray:
+    """`y` (samples x devices) less its first sample."""
+    y = np.asarray(y, dtype=float)
+    return y - y[:1]
+
+
+def _note_if_zero(ax, y, ylabel: str) -> None:
+    """State on the panel that a signal is zero throughout (a case without
+    stabilizers, governors that hold their power), instead of a flat line."""
+    y = np.asarray(y, dtype=float)
+    if y.size and not np.any(np.abs(y[np.isfinite(y)]) > 0):
+        what = "no stabilizer in this case" if "Vs" in ylabel else "constant"
+        ax.text(
+            0.5,
+            0.75,
+            f"zero throughout ({what})",
+            transform=ax.transAxes,
+            ha="center",
+            va="center",
+            fontsize=9,
+            color="dimgray",
+            bbox={"facecolor": "white", "edgecolor": "none", "alpha": 0.8},
+        )
+
+
+def _colors(n: int, shown) -> dict:
+    """One colour per shown machine (tab10, no repeats among `SHOWN`)."""
+    return {int(i): f"C{k % 10}" for k, i in enumerate(shown)}
+
+
+def _legend_outside(fig, axes, extra: str = "") -> None:
+    """One legend, right of the axes, from the first panel's entries."""
+    handles, labels = axes[0].get_legend_handles_labels()
+    fig.legend(
+        handles,
+        labels,
+        loc="upper left",
+        bbox_to_anchor=(0.81, 0.93),
+        fontsize=8,
+        frameon=False,
+        title=extra or None,
+        title_fontsize=8,
+    )
+
+
+def bus_extremes(v_bus, t, bus_numbers, after: float) -> list[tuple[int, str]]:
+    """The buses a voltage panel names: (column, text) for the bus with the lowest
+    voltage after `after` (s; the last switching), the one with the highest, and the
+    lowest at any time (the faulted bus, usually) when it is another."""
+    v = np.asarray(v_bus, dtype=float)
+    late = np.asarray(t) > after
+    late = late if late.any() else np.ones_like(late)
+    with np.errstate(all="ignore"):
+        lo_late = np.nanmin(v[late], axis=0)
+        hi_all = np.nanmax(v, axis=0)
+        lo_all = np.nanmin(v, axis=0)
+    picks = []
+    k = int(np.nanargmin(lo_late))
+    picks.append((k, f"bus {bus_numbers[k]}: lowest after {after:g} s"))
+    k = int(np.nanargmax(hi_all))
+    picks.append((k, f"bus {bus_numbers[k]}: highest"))
+    k = int(np.nanargmin(lo_all))
+    if k not in [p[0] for p in picks]:
+        picks.append((k, f"bus {bus_numbers[k]}: lowest"))
+    return picks
+
+
+def plot_grid_run(
+    a: dict, path, title: str, events=(), bus_names=None, n_shown: int = SHOWN
+) -> None:
+    """A multi-machine run (`simulate --case`): angles from the centre of inertia
+    (deg), speed deviations (pu), electrical and mechanical power (pu machine base),
+    field voltages Efd and stabilizer outputs Vs (pu), terminal voltages (pu) and
+    the bus voltages (pu: all buses as a band, the lowest after the last event, the
+    highest and the lowest overall named by PSS/E number). Beyond `n_shown + 2`
+    machines the `n_shown` with the largest angle excursions are drawn one by one,
+    the others as a band; one legend right of the axes. `events` = [(t (s),
+    text)] are dotted lines with their text in the legend. `a`: the arrays of
+    `simulate --case` (t, gen, bus, delta_coi (rad), omega, pe, pm, efd, vs, vt,
+    v_bus)."""
+    t = np.asarray(a["t"], dtype=float)
+    gens = [str(g) for g in a["gen"]]
+    ang = np.degrees(np.asarray(a["delta_coi"], dtype=float))
+    shown = machines_shown(ang, n_shown)
+    colors = _colors(len(gens), shown)
+    labels = {int(i): f"G {gens[i]}" for i in shown}
+    panels = [
+        (ang, "angle - COI (deg)"),
+        (a["omega"], "speed deviation (pu)"),
+        (_change(a["pe"]), "electrical power Pe - Pe(0)\n(pu machine base)"),
+        (_change(a["pm"]), "mechanical power Pm - Pm(0)\n(pu machine base)"),
+        (a["efd"], "field voltage Efd (pu)"),
+        (a["vs"], "stabilizer output Vs (pu)"),
+        (a["vt"], "terminal voltage (pu)"),
+    ]
+    fig, axs = subplots(4, 2, figsize=(13, 10.5), sharex=True)
+    flat = list(axs.flat)
+    for ax, (y, ylabel) in zip(flat, panels, strict=False):
+        _machine_panel(ax, t, y, shown, colors, labels)
+        ax.set_ylabel(ylabel, fontsize=9)
+        _note_if_zero(ax, y, ylabel)
+    ax = flat[7]
+    vb = np.asarray(a["v_bus"], dtype=float)
+    numbers = [int(b) for b in a["bus"]]
+    with np.errstate(all="ignore"):
+        ax.fill_between(
+            t,
+            np.nanmin(vb, axis=1),
+            np.nanmax(vb, axis=1),
+            color="0.6",
+            alpha=0.3,
+            lw=0,
+            label=f"all {vb.shape[1]} buses",
+        )
+    last = max([e[0] for e in events], default=float(t[0]))
+    for k, (col, text) in enumerate(bus_extremes(vb, t, numbers, last)):
+        name = bus_names[col].strip() if bus_names is not None else ""
+        ax.plot(
+            t,
+            vb[:, col],
+            lw=1.1,
+            color=("navy", "teal", "black")[k],
+            ls=("-", "-", "--")[k],
+            label=text + (f" ({name})" if name else ""),
+        )
+    ax.set_ylabel("bus voltage (pu)", fontsize=9)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=7, loc="lower right")
+    for i, ax in enumerate(flat):
+        _event_marks(ax, events, legend=i == 0)
+    for ax in axs[-1]:
+        ax.set_xlabel("t (s)")
+    n = len(gens)
+    note = (
+        f"{len(shown)} of {n} machines: largest angle swings"
+        if len(shown) < n
+        else f"all {n} machines"
+    )
+    _legend_outside(fig, flat, note)
+    fig.suptitle(title, fontsize=10)
+    fig.tight_layout(rect=(0, 0, 0.8, 0.97))
+    save_figure(fig, path)
+
+
+def plot_grid_compare(
+    runs: dict[str, dict], path, title: str = "", events=(), n_shown: int = SHOWN
+) -> None:
+    """Runs of one case side by side (the grid tuner's before/after), one column per
+    run, on shared y axes per row: angles from the centre of inertia (deg), speed
+    deviations (pu), field voltages Efd and stabilizer outputs Vs (pu). The same
+    machines (the largest angle excursions over all runs) in the same colours in
+    every column, the others as a band. `runs`: label -> arrays as
+    `plot_grid_run`'s; `events` = [(t (s), text)]."""
+    items = list(runs.items())
+    gens = [str(g) for g in items[0][1]["gen"]]
+    angs = [np.degrees(np.asarray(a["delta_coi"], dtype=float)) for _, a in items]
+    shown = machines_shown(np.concatenate(angs, axis=0), n_shown)
+    colors = _colors(len(gens), shown)
+    labels = {int(i): f"G {gens[i]}" for i in shown}
+    rows = [
+        ("delta_coi", "angle - COI (deg)"),
+        ("omega", "speed deviation (pu)"),
+        ("efd", "field voltage Efd (pu)"),
+        ("vs", "stabilizer output Vs (pu)"),
+    ]
+    fig, axs = subplots(
+        len(rows),
+        len(items),
+        figsize=(4.6 * len(items) + 2.6, 9.5),
+        sharex=True,
+        sharey="row",
+        squeeze=False,
+    )
+    for col, ((label, a), ang) in enumerate(zip(items, angs, strict=True)):
+        t = np.asarray(a["t"], dtype=float)
+        for r, (key, ylabel) in enumerate(rows):
+            ax = axs[r, col]
+            y = ang if key == "delta_coi" else a[key]
+            _machine_panel(ax, t, y, shown, colors, labels)
+            _note_if_zero(ax, y, ylabel)
+            _event_marks(ax, events, legend=(r, col) == (0, 0))
+            if col == 0:
+                ax.set_ylabel(ylabel, fontsize=9)
+        axs[0, col].set_title(label, fontsize=10)
+        axs[-1, col].set_xlabel("t (s)")
+    n = len(gens)
+    note = (
+        f"{len(shown)} of {n} machines: largest angle swings"
+        if len(shown) < n
+        else f"all {n} machines"
+    )
+    right = 1 - 2.4 / (4.6 * len(items) + 2.6)
+    handles, labs = axs[0, 0].get_legend_handles_labels()
+    fig.legend(
+        handles,
+        labs,
+        loc="upper left",
+        bbox_to_anchor=(right + 0.01, 0.93),
+        fontsize=8,
+        frameon=False,
+        title=note,
+        title_fontsize=8,
+    )
+    if title:
+        fig.suptitle(title, fontsize=10)
+    fig.tight_layout(rect=(0, 0, right, 0.97))
+    save_figure(fig, path)
+
+
+CCT_SHOWN = 30
+"""The most fault buses a CCT bar chart names (the shortest CCTs)."""
+
+
+def plot_case_cct(rows: list[dict], t_max: float, path, title: str = "") -> None:
+    """The critical clearing time (s) of a fault at each bus (`rows`: bus, name,
+    cct, status as `cli.grid.cct_rows`), shortest first, one bar per bus labelled
+    with its PSS/E number: at most `CCT_SHOWN` buses (the shortest), a bar to
+    `t_max` hatched where the run is stable even then, a red cross at 0 where it is
+    unstable at the shortest duration tried."""
+
+    def key(r):
+        return t_max * 2 if r["cct"] is None else r["cct"]
+
+    rows = sorted(rows, key=key)
+    shown = rows[:CCT_SHOWN]
+    fig, ax = subplots(figsize=(max(6.0, 0.28 * len(shown) + 2.5), 4.3))
+    x = np.arange(len(shown))
+    for i, r in enumerate(shown):
+        if r["status"] == "exceeds_max":
+            ax.bar(i, t_max, color="none", edgecolor="C0", hatch="//", lw=0.8)
+        elif r["status"] == "unstable_at_min":
+            ax.plot(i, 0.0, "x", color="red", ms=8, mew=2)
+        else:
+            ax.bar(i, r["cct"], color="C0")
+    ax.set_xticks(x)
+    ax.set_xticklabels([str(r["bus"]) for r in shown], rotation=90, fontsize=7)
+    ax.set_xlim(-0.7, max(len(shown) - 0.3, 0.7))
+    ax.set_ylim(0, 1.08 * t_max)
+    ax.axhline(t_max, color="k", ls="--", lw=0.8)
+    ax.set_xlabel(
+        "fault bus (PSS/E number)"
+        + (
+            f", the {len(shown)} shortest of {len(rows)}"
+            if len(shown) < len(rows)
+            else ""
+        )
+    )
+    ax.set_ylabel("critical clearing time (s)")
+    ax.grid(alpha=0.3, axis="y")
+    from matplotlib.lines import Line2D
+    from matplotlib.patches import Patch
+
+    ax.legend(
+        handles=[
+            Patch(color="C0", label="CCT"),
+            Patch(facecolor="none", edgecolor="C0", hatch="//", label=f"> {t_max:g} s"),
+            Line2D([], [], ls="", marker="x", color="red", mew=2, label="none"),
+            Line2D([], [], ls="--", color="k", lw=0.8, label="longest tried"),
+        ],
+        fontsize=7,
+        loc="upper left",
+        bbox_to_anchor=(1.0, 1.0),
+        frameon=False,
+    )
+    ax.set_title(title, fontsize=9)
+    fig.tight_layout()
+    save_figure(fig, path)
+
+
+def plot_case_compare(rows: dict[str, dict], ccts: dict, path, title: str = "") -> None:
+    """`compare --case`: per parameter set, the settling time of the angles from the
+    centre of inertia (s; stable scenarios) and the first-swing overshoot (deg) as
+    histograms on shared bins, and (when computed) the critical clearing time (s) of
+    a bolted fault at each bus, buses by PSS/E number in the order of the first
+    set's CCTs. `rows`: label -> `GridMetrics` rows; `ccts`: label -> a
+    `critical_clearing_times_grid` result (may be empty)."""
+    n = 3 if ccts else 2
+    fig, axes = subplots(1, n, figsize=(5.2 * n, 4.2))
+    settle = {}
+    for label, r in rows.items():
+        st = np.asarray(r["stable"], dtype=bool)
+        ts = np.asarray(r["settling_angle"], dtype=float)[st]
+        settle[label] = ts[np.isfinite(ts)]
+    every = np.concatenate([v for v in settle.values()] + [np.zeros(1)])
+    bins = np.linspace(0.0, max(float(every.max()), 1e-3), 31)
+    for i, (label, v) in enumerate(settle.items()):
+        n_st = int(np.sum(np.asarray(rows[label]["stable"], dtype=bool)))
+        axes[0].hist(
+            v,
+            bins=bins,
+            histtype="step",
+            lw=1.5,
+            color=f"C{i}",
+            label=f"{label} ({n_st} of {len(rows[label]['stable'])} stable)",
+        )
+    axes[0].set_xlabel("settling time of the COI angles (s)")
+    axes[0].set_ylabel("scenarios")
+    over = {
+        k: np.degrees(np.asarray(r["overshoot"], dtype=float)) for k, r in rows.items()
+    }
+    every = np.concatenate([v[np.isfinite(v)] for v in over.values()] + [np.zeros(1)])
+    bins = np.linspace(0.0, max(float(every.max()), 1e-3), 31)
+    for i, (label, v) in enumerate(over.items()):
+        axes[1].hist(
+            v[np.isfinite(v)],
+            bins=bins,
+            histtype="step",
+            lw=1.5,
+            color=f"C{i}",
+            label=label,
+        )
+    axes[1].set_xlabel("first-swing overshoot (deg)")
+    if ccts:
+        ax = axes[2]
+        first = next(iter(ccts.values()))["cct"]
+        order = sorted(first, key=lambda b: np.inf if first[b] is None else first[b])
+        x = np.arange(len(order))
+        for i, (label, res) in enumerate(ccts.items()):
+            y = [np.nan if res["cct"].get(b) is None else res["cct"][b] for b in order]
+            ax.plot(x, y, "o-", ms=3, lw=1, color=f"C{i}", label=label)
+        ax.set_xticks(x)
+        ax.set_xticklabels([str(b) for b in order], rotation=90, fontsize=6)
+        ax.set_xlabel("fault bus (PSS/E number; gaps: stable at the longest tried)")
+        ax.set_ylabel("critical clearing time (s)")
+    for ax in axes:
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=7)
+    if title:
+        fig.suptitle(title, fontsize=10)
     fig.tight_layout()
     save_figure(fig, path)

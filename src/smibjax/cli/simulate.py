@@ -47,11 +47,13 @@ def add_parser(sub) -> None:
     )
     s.add_argument(
         "--out",
-        metavar="FILE.npz",
+        metavar="FILE.npz|.csv|.mat|.cfg",
         nargs="?",
         const=UNNAMED,
-        help="write the trajectory; --out alone: a new file runs/simulate-<time>.npz "
-        "(default: nothing written)",
+        help="write the trajectory in the format of the suffix: .npz (NumPy), .csv "
+        "(a wide table, one column per signal with its device and unit), .mat "
+        "(MATLAB v5), .cfg (COMTRADE C37.111-1999 ASCII, with its .dat); --out "
+        "alone: a new file runs/simulate-<time>.npz (default: nothing written)",
     )
     s.add_argument(
         "--plot",
@@ -60,13 +62,13 @@ def add_parser(sub) -> None:
     )
     add_force(s)
     add_case_options(s)
-    s.set_defaults(func=run, flags=s.flags)
+    s.set_defaults(func=run, flags=s.flags, precheck=precheck)
 
 
 def run(args) -> int:
     import numpy as np
 
-    from .._files import write_npz
+    from .._export import smib_columns, write_trajectory
     from .._options import SaveOptions
     from .._parameters import Fault
     from . import _exported
@@ -116,8 +118,15 @@ def run(args) -> int:
             },
         }
         arrays["meta"] = np.array(json.dumps(meta, allow_nan=True))
-        write_npz(out, arrays)
-        print(f"wrote {out}")
+        written = write_trajectory(
+            out,
+            arrays,
+            smib_columns(arrays),
+            station="SMIB",
+            frequency=float(plant.f),
+            trigger=float(args.fault_time),
+        )
+        print(f"wrote {', '.join(str(w) for w in written)}")
     if plot:
         plot_trajectory(
             arrays,
@@ -143,18 +152,15 @@ def output(args) -> Path | None:
 
 
 def _outputs(args) -> tuple[Path | None, Path | None]:
-    """--out (.npz appended when missing) and --plot paths, refused before the run
-    when they exist (without --force), name a folder, the same file, or (for --plot)
-    a format that cannot be written."""
+    """--out (.npz appended when there is no suffix; `check_out`) and --plot paths,
+    refused before the run when they exist (without --force), name a folder, the
+    same file, or a format that cannot be written."""
     from .._figures import check_plot_path
     from .._files import check_new_file
 
     out = plot = None
     if args.out:
-        out = Path(args.out)
-        if out.suffix != ".npz":
-            out = out.with_name(out.name + ".npz")
-        out = check_new_file(out, args.force, "--out")
+        out = check_out(args.out, args.force)
     if args.plot:
         plot = check_new_file(check_plot_path(args.plot), args.force, "--plot")
         if out is not None and plot.resolve() == out.resolve():
@@ -162,6 +168,41 @@ def _outputs(args) -> tuple[Path | None, Path | None]:
                 f"--plot = {str(plot)!r} is not allowed: must differ from --out"
             )
     return out, plot
+
+
+def precheck(args) -> None:
+    """Before JAX starts: --out's suffix names a format (.npz, .csv, .mat, .cfg) and
+    the file (with COMTRADE's .dat) is new or --force is given; CLIError."""
+    from .._export import FormatError, check_trajectory_path, companion_files
+
+    if not args.out:  # None, or `--out` alone: a new name under runs/
+        return
+    try:
+        out = check_trajectory_path(args.out, "--out")
+    except FormatError as e:
+        raise CLIError(str(e)) from None
+    for p in companion_files(out):
+        if p.exists() and not args.force:
+            raise CLIError(
+                f"--out = {str(p)!r} is not allowed: must be a new file (it exists; "
+                "add --force to replace it)"
+            )
+
+
+def check_out(path, force: bool) -> Path:
+    """The --out trajectory file (`_export.check_trajectory_path`: .npz, .csv, .mat
+    or .cfg; .npz appended without a suffix), and for COMTRADE its .dat, new (or
+    --force): refused in one line before the run."""
+    from .._export import FormatError, check_trajectory_path, companion_files
+    from .._files import check_new_file
+
+    try:
+        out = check_trajectory_path(path, "--out")
+    except FormatError as e:
+        raise CLIError(str(e)) from None
+    for p in companion_files(out):
+        check_new_file(p, force, "--out")
+    return out
 
 
 def _warn_dt_save(args) -> None:

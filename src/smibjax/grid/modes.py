@@ -12,20 +12,22 @@ Modes (`modes`): eigenvalues lambda = sigma + j omega of A, frequency omega/(2 p
 (Hz), damping ratio zeta = -sigma/|lambda|, right eigenvectors r (columns) and left
 eigenvectors l (rows of inv(R)), participation factors p_ki = |r_ki l_ik| normalized
 so that each mode's participations sum to 1 (Kundur section 12.2). A mode is
-*electromechanical* when the rotor angles and speeds hold most of its participation
-(> 0.5) and it oscillates (0.05 to 5 Hz); it is *inter-area* when the machines that
-take part (speed mode shape at least 20% of the largest) swing in two opposing groups
-whose areas (the raw file's bus areas) are disjoint, or, in a one-area system, when
-each opposing group has at least two machines; *common* when two or more machines
-take part all in phase (no opposing group: the whole system swinging against its
-controllers, e.g. a slow speed-governor or washout mode); *local* otherwise. Zero modes (|lambda|
-< 1e-6 1/s... see `zero_tol`) of a system without an infinite bus, the absolute
-angle and, without governors or damping, the common speed, are reported as
-`kind = "zero"`, not as instabilities; each zero eigenvalue is its own mode (a
-double zero of an undamped system without an infinite bus is two modes: its
-numerical pair, ~1e-8 apart, is not a conjugate pair). A zero mode whose
-participation sits on a state that never moves (its row of A is identically zero: a
-disabled filter stage, an infinite bus's angle) has `kind = "frozen"`.
+*electromechanical* when the rotor angles and speeds hold most of its participation (>
+0.5) and it oscillates (0.05 to 5 Hz); it is *inter-area* when the machines that take
+part (speed mode shape at least 20% of the largest) swing in two opposing groups whose
+main areas (the raw file's bus area holding most of each group's mode shape) differ,
+or, in a one-area system, when each opposing group has at least two machines, or, in
+any system, when many machines take part (`SPREAD`: at least 6 and a quarter of them;
+a 0.22 Hz NPCC mode of 24 machines in overlapping areas); *common* when two or more
+machines take part all in phase (no opposing group: the whole system swinging against
+its controllers, e.g. a slow speed-governor or washout mode); *local* otherwise. Zero
+modes (|lambda| < 1e-6 1/s... see `zero_tol`) of a system without an infinite bus, the
+absolute angle and, without governors or damping, the common speed, are reported as
+`kind = "zero"`, not as instabilities; each zero eigenvalue is its own mode (a double
+zero of an undamped system without an infinite bus is two modes: its numerical pair,
+~1e-8 apart, is not a conjugate pair). A zero mode whose participation sits on a state
+that never moves (its row of A is identically zero: a disabled filter stage, an
+infinite bus's angle) has `kind = "frozen"`.
 The damping ratio of a zero or frozen mode is reported as NaN (undefined).
 """
 
@@ -52,7 +54,10 @@ __all__ = [
     "participation",
     "transfer_function",
     "dominant_machines",
+    "dominant_text",
     "check_equilibrium",
+    "active_limits",
+    "LIMIT_CONVENTION",
 ]
 
 INPUTS = ("Efd", "Pm", "Vs")
@@ -223,6 +228,14 @@ def dominant_machines(mode: Mode, share: float = 0.2) -> tuple[str, ...]:
     return tuple(g for g, v in items if abs(v) >= share)
 
 
+def dominant_text(mode: Mode, top: int = 5, share: float = 0.2) -> str:
+    """The dominant machines (`dominant_machines`) for a line of text: the first
+    `top`, then how many more ("23:2, 36:1, 24:1, 25:1, 23:1 and 19 more")."""
+    names = dominant_machines(mode, share)
+    text = ", ".join(names[:top])
+    return text + (f" and {len(names) - top} more" if len(names) > top else "")
+
+
 def transfer_function(lin: Linearization, s, output, input) -> complex:
     """G(s) = C_i (sI - A)^-1 B_j + D_ij for the output ('Vt', '1:1') and the input
     ('Efd', '1:1') named as in `lin.outputs` / `lin.inputs`; `s` in 1/s (j omega
@@ -234,8 +247,18 @@ def transfer_function(lin: Linearization, s, output, input) -> complex:
     return complex(lin.C[i] @ x + lin.D[i, j])
 
 
+SPREAD = (6, 0.25)
+"""A mode whose speed mode shape has at least max(6, 25% of the machines) taking
+part, in two opposing groups, is inter-area whatever the areas say (`_scope`)."""
+
+
 def _scope(shape: dict, names, areas) -> str:
-    """'inter-area' or 'local' from the speed mode shape (see the module docstring)."""
+    """'inter-area', 'local' or 'common' from the speed mode shape (see the module
+    docstring): the machines taking part (|shape| >= 0.2 of the largest) split by
+    the sign of their real part into two opposing groups; inter-area when the two
+    groups' main areas (the area holding most of a group's |shape|) differ, in a
+    one-area system when each group has two machines or more, and in any system
+    when the machines taking part are many (`SPREAD`); local otherwise."""
     if not shape:
         return ""
     area_of = dict(zip(names, areas, strict=True))
@@ -244,9 +267,18 @@ def _scope(shape: dict, names, areas) -> str:
     neg = [g for g, v in sig.items() if v.real < 0]
     if not pos or not neg:
         return "common" if len(sig) >= 2 else "local"
-    a_pos, a_neg = {area_of[g] for g in pos}, {area_of[g] for g in neg}
+    least, share = SPREAD
+    if len(sig) >= max(least, share * len(shape)):
+        return "inter-area"
+
+    def main_area(group):
+        weight: dict = {}
+        for g in group:
+            weight[area_of[g]] = weight.get(area_of[g], 0.0) + abs(sig[g])
+        return max(weight, key=weight.get)
+
     if len(set(areas)) > 1:
-        return "inter-area" if not (a_pos & a_neg) else "local"
+        return "inter-area" if main_area(pos) != main_area(neg) else "local"
     return "inter-area" if min(len(pos), len(neg)) >= 2 else "local"
 
 
@@ -265,3 +297,52 @@ def check_equilibrium(case: Case, op: Operating, tol: float = 1e-6) -> None:
             f"the operating point is not an equilibrium: d{st}/dt = {dy[k]:.3g} at "
             f"{model} {dev} (more than {tol:g})"
         )
+
+
+LIMIT_CONVENTION = (
+    "the linearization takes JAX's derivative at the limit: a non-windup state "
+    "exactly on its limit is free (its derivative is not held at 0), the output "
+    "clipped there moves at half its free gain (neither binding nor free)"
+)
+"""How `linearize` treats a limiter whose signal sits exactly on its limit at the
+operating point (jnp.clip's derivative at a tie is 1/2; `_blocks.nonwindup` holds a
+state only while it is pushed outwards, and at rest nothing pushes). Another
+program may treat the limit as binding (derivative 0) or free (1)."""
+
+
+LIMITED_STATES = {
+    ("TGOV1", "x_v"): ("VMIN", "VMAX"),
+    ("SEXS", "Efd"): ("EMIN", "EMAX"),
+}
+"""The states held by constant non-windup limits, by (model, state): the limits
+`active_limits` checks. Not checked: exciter limits that move with the terminal
+voltage (IEEEX1, EXDC2, EXST1) and algebraic output limiters (IEEEST, STAB1,
+CSVGN1)."""
+
+
+def active_limits(case: Case, op: Operating, tol: float = 1e-9) -> list[tuple]:
+    """The limiters on which the operating point sits: (model, device 'bus:id',
+    state, limit name, value) for each state of `LIMITED_STATES` within `tol`
+    (relative, absolute below 1) of its device's limit, in the order of the flat
+    state."""
+    from .loop import state_labels
+
+    labels = state_labels(case)
+    y0 = np.asarray(op.y0, dtype=float)
+    lay = case.layout
+    groups = [(m, len(lay.machine_gen[k])) for k, m in enumerate(case.machines)]
+    groups += [(c, len(lay.controller_gen[k])) for k, c in enumerate(case.controllers)]
+    groups += [(sv, len(lay.svc_bus[k])) for k, sv in enumerate(case.svcs)]
+    out, at = [], 0
+    for dev, n in groups:
+        model = type(dev).__name__
+        for st in dev.state_names:
+            x = y0[at : at + n]
+            for name in LIMITED_STATES.get((model, st), ()):
+                lim = np.broadcast_to(np.asarray(getattr(dev, name), dtype=float), (n,))
+                near = np.abs(x - lim) <= tol * np.maximum(1.0, np.abs(lim))
+                for i in np.flatnonzero(np.isfinite(lim) & near):
+                    _, device, state = labels[at + i]
+                    out.append((model, device, state, name, float(lim[i])))
+            at += n
+    return out
