@@ -170,3 +170,18 @@ def test_comtrade_time_stamps_past_a_minute():
     """The trigger of a fault at 75.5 s (dd/mm/yyyy,hh:mm:ss.ssssss)."""
     assert _export._stamp(75.5) == "01/01/2000,00:01:15.500000"
     assert _export._stamp(3725.000001) == "01/01/2000,01:02:05.000001"
+
+
+def test_mat_without_scipy_is_one_line_naming_the_extra(monkeypatch):
+    import importlib.util
+
+    real = importlib.util.find_spec
+    monkeypatch.setattr(
+        importlib.util,
+        "find_spec",
+        lambda name, *a: None if name == "scipy" else real(name, *a),
+    )
+    with pytest.raises(_export.FormatError) as e:
+        _export.check_trajectory_path("run.mat")
+    assert "pip install 'smibjax[mat]'" in str(e.value) and "\n" not in str(e.value)
+    assert _export.check_trajectory_path("run.csv").suffix == ".csv"

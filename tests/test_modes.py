@@ -584,3 +584,48 @@ def test_active_limits_names_a_governor_sitting_on_its_valve_limit():
     assert active_limits(on, op_on) == [("TGOV1", "1:1", "x_v", "VMIN", xv)]
     off = set_params(case, {"TGOV1[1:1].VMIN": xv - 1e-3})
     assert active_limits(off, operating_point(off)[0]) == []
+
+
+def test_modes_warns_once_per_active_limit_and_states_the_convention(
+    monkeypatch, capsys
+):
+    from smibjax.cli import modes as cli_modes
+    from smibjax.grid import modes as grid_modes
+
+    monkeypatch.setattr(
+        grid_modes,
+        "active_limits",
+        lambda case, op: [("TGOV1", "6:1", "x_v", "VMIN", 0.3)],
+    )
+    cli_modes.warn_active_limits(None, None)
+    err = capsys.readouterr().err.splitlines()
+    assert err[0] == (
+        "smibjax: warning: TGOV1 6:1: x_v sits on its limit VMIN = 0.3 at the "
+        "operating point"
+    )
+    assert err[1].startswith("smibjax: warning: the linearization takes JAX's")
+    assert "--set MODEL[BUS:ID].PARAM=VALUE" in err[1] and len(err) == 2
+    monkeypatch.setattr(grid_modes, "active_limits", lambda case, op: [])
+    cli_modes.warn_active_limits(None, None)
+    assert capsys.readouterr().err == ""
+
+
+def test_the_documented_limit_convention_is_what_jax_differentiates():
+    """`LIMIT_CONVENTION`: a non-windup lag exactly on its lower limit at rest
+    (input = state = limit): its state derivative is free (-1/T per unit of state),
+    its clipped output moves at half the free gain (jnp.clip at a tie)."""
+    from smibjax.grid.devices._blocks import lag_nonwindup
+    from smibjax.grid.modes import LIMIT_CONVENTION
+
+    lo, hi, T = 0.3, 1.0, 0.5
+
+    def f(x, u):
+        y, dx = lag_nonwindup(x, u, 1.0, T, lo, hi)
+        return jnp.stack([y, dx])
+
+    J = jax.jacfwd(f, argnums=(0, 1))(jnp.asarray(lo), jnp.asarray(lo))
+    dy_dx, ddx_dx = (float(v) for v in J[0])
+    assert dy_dx == 0.5  # half the free gain: neither binding (0) nor free (1)
+    assert ddx_dx == pytest.approx(-1 / T)  # the state free
+    assert float(J[1][1]) == pytest.approx(1 / T)
+    assert "half its free gain" in LIMIT_CONVENTION and "free" in LIMIT_CONVENTION

@@ -56,7 +56,8 @@ Column = tuple[str, str, str, np.ndarray]
 def check_trajectory_path(path, option: str = "--out") -> Path:
     """`path` as a Path when its suffix names a trajectory format (`.npz`, `.csv`,
     `.mat`, `.cfg`; a name without a suffix gets `.npz`); any other suffix is a
-    one-line `FormatError` naming the allowed ones."""
+    one-line `FormatError` naming the allowed ones, and so is `.mat` where SciPy
+    (the optional extra `mat`; a dependency of JAX) is not installed."""
     p = Path(path)
     if not p.suffix:
         return p.with_name(p.name + ".npz")
@@ -65,6 +66,14 @@ def check_trajectory_path(path, option: str = "--out") -> Path:
         raise FormatError(
             f"{option} = {str(p)!r} is not allowed: the suffix must be one of {allowed}"
         )
+    if p.suffix.lower() == ".mat":
+        import importlib.util
+
+        if importlib.util.find_spec("scipy") is None:  # (JAX needs it: rare)
+            raise FormatError(
+                f"{option} = {str(p)!r} is not allowed here: .mat needs SciPy "
+                "(pip install 'smibjax[mat]'); .npz, .csv and .cfg need nothing more"
+            )
     return p
 
 

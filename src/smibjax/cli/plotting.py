@@ -413,7 +413,11 @@ def _note_if_zero(ax, y, ylabel: str) -> None:
     stabilizers, governors that hold their power), instead of a flat line."""
     y = np.asarray(y, dtype=float)
     if y.size and not np.any(np.abs(y[np.isfinite(y)]) > 0):
-        what = "no stabilizer in this case" if "Vs" in ylabel else "constant"
+        what = (
+            "no stabilizer in this case"
+            if "Vs" in ylabel
+            else ("no governor in this case" if "Pm" in ylabel else "constant")
+        )
         ax.text(
             0.5,
             0.75,
@@ -432,12 +436,20 @@ def _colors(n: int, shown) -> dict:
     return {int(i): f"C{k % 10}" for k, i in enumerate(shown)}
 
 
+def _wrap(text: str, width: int = 30) -> str:
+    """A legend entry on lines of at most `width` characters (the legend column
+    right of the axes is narrow)."""
+    import textwrap
+
+    return "\n".join(textwrap.wrap(text, width)) or text
+
+
 def _legend_outside(fig, axes, extra: str = "") -> None:
     """One legend, right of the axes, from the first panel's entries."""
     handles, labels = axes[0].get_legend_handles_labels()
     fig.legend(
         handles,
-        labels,
+        [_wrap(label) for label in labels],
         loc="upper left",
         bbox_to_anchor=(0.81, 0.93),
         fontsize=8,
@@ -597,7 +609,7 @@ def plot_grid_compare(
     handles, labs = axs[0, 0].get_legend_handles_labels()
     fig.legend(
         handles,
-        labs,
+        [_wrap(label) for label in labs],
         loc="upper left",
         bbox_to_anchor=(right + 0.01, 0.93),
         fontsize=8,
