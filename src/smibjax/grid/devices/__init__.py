@@ -15,3 +15,11 @@ from .sexs import SEXS as SEXS
 from .stab1 import STAB1 as STAB1
 from .synex import SYNEX as SYNEX
 from .tgov1 import TGOV1 as TGOV1
+
+# isort: split
+# governors and stabilizers of issue 45
+from .hygov import HYGOV as HYGOV
+from .ieeeg1 import IEEEG1 as IEEEG1
+from .ieesgo import IEESGO as IEESGO
+from .st2cut import ST2CUT as ST2CUT
+from .stab2a import STAB2A as STAB2A
