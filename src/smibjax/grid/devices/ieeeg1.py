@@ -56,6 +56,13 @@ __all__ = ["IEEEG1"]
 _CONS = DYR_MODELS["IEEEG1"][2:]  # the CONs after the ICONs JBUS, M
 
 
+_HP_RULE = (
+    "K1",
+    lambda o: (v(o, "K1") + v(o, "K3") + v(o, "K5") + v(o, "K7")) > 0,
+    "K1 + K3 + K5 + K7 must be > 0 (the machine's share of the power)",
+)
+
+
 class IEEEG1(AbstractController):
     gen: np.ndarray = eqx.field(converter=i64)
     JBUS: np.ndarray = eqx.field(converter=i64)  # low-pressure machine's bus (0 only)
@@ -104,13 +111,10 @@ class IEEEG1(AbstractController):
                 ("UC", lambda o: v(o, "UC") <= 0, "must be <= 0 (a closing rate)"),
                 ordered("PMIN", "PMAX"),
                 *nonneg("K1", "K2", "K3", "K4", "K5", "K6", "K7", "K8"),
-                (
-                    "K1",
-                    lambda o: (v(o, "K1") + v(o, "K3") + v(o, "K5") + v(o, "K7")) > 0,
-                    "K1 + K3 + K5 + K7 must be > 0 (the machine's share of the power)",
-                ),
             ],
         )
+        if is_concrete(self.K1, self.K3, self.K5, self.K7):  # a rule reading four
+            check(self, [_HP_RULE])
 
     @classmethod
     def from_params(cls, gen_positions, params):
@@ -137,15 +141,6 @@ class IEEEG1(AbstractController):
         y7, d7 = lag(x[5], y6, 1.0, self.T7)
         pm = self.K1 * y4 + self.K3 * y5 + self.K5 * y6 + self.K7 * y7
         return pm, jnp.stack([d_ll, d_gv, d4, d5, d6, d7])
-
-    def lp_power(self, x):
-        """PMECH_LP (pu machine base): the low-pressure output, which drives no
-        machine here (JBUS = 0)."""
-        y4 = jnp.where(self.T4 > 0, x[2], x[1])
-        y5 = jnp.where(self.T5 > 0, x[3], y4)
-        y6 = jnp.where(self.T6 > 0, x[4], y5)
-        y7 = jnp.where(self.T7 > 0, x[5], y6)
-        return self.K2 * y4 + self.K4 * y5 + self.K6 * y6 + self.K8 * y7
 
     def init(self, y0, meas):
         w = meas["omega"]

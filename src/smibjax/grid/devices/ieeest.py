@@ -68,9 +68,27 @@ def _degree(a, b):
 
 def _den_degree(o):
     """The degree of the filter's denominator (NumPy, for the checks)."""
-    return np.asarray(_degree(v(o, "A1"), v(o, "A2"))) + np.asarray(
-        _degree(v(o, "A3"), v(o, "A4"))
-    )
+
+    def deg(a, b):
+        return np.where(v(o, b) != 0, 2, np.where(v(o, a) != 0, 1, 0))
+
+    return deg("A1", "A2") + deg("A3", "A4")
+
+
+FILTER_RULES = [
+    (
+        "A6",
+        lambda o: (v(o, "A6") == 0) | (_den_degree(o) >= 2),
+        "must be 0 where the filter's denominator (1 + A1 s + A2 s^2)"
+        "(1 + A3 s + A4 s^2) is of degree < 2 (the filter would be "
+        "improper)",
+    ),
+    (
+        "A5",
+        lambda o: (v(o, "A5") == 0) | (_den_degree(o) >= 1),
+        "must be 0 where A1 = A2 = A3 = A4 = 0 (the filter would be improper)",
+    ),
+]
 
 
 def filter_sections(A1, A2, A3, A4, A5, A6):
@@ -138,22 +156,11 @@ class IEEEST(AbstractController):
                 *positive("T6"),
                 proper("T1", "T2"),
                 proper("T3", "T4"),
-                (
-                    "A6",
-                    lambda o: (v(o, "A6") == 0) | (_den_degree(o) >= 2),
-                    "must be 0 where the filter's denominator (1 + A1 s + A2 s^2)"
-                    "(1 + A3 s + A4 s^2) is of degree < 2 (the filter would be "
-                    "improper)",
-                ),
-                (
-                    "A5",
-                    lambda o: (v(o, "A5") == 0) | (_den_degree(o) >= 1),
-                    "must be 0 where A1 = A2 = A3 = A4 = 0 (the filter would be "
-                    "improper)",
-                ),
                 ordered("LSMIN", "LSMAX"),
             ],
         )
+        if is_concrete(*(getattr(self, f"A{i}") for i in range(1, 7))):
+            check(self, FILTER_RULES)  # rules that read every A: all concrete
 
     @classmethod
     def from_params(cls, gen_positions, params):
