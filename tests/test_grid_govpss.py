@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 
 from smibjax._validate import ParameterError
+from smibjax.grid.devices.gast import GAST
 from smibjax.grid.devices.hygov import HYGOV
 from smibjax.grid.devices.ieeeg1 import IEEEG1
 from smibjax.grid.devices.ieeest import IEEEST
@@ -100,6 +101,21 @@ def _ieesgo(r):
     )
 
 
+def _gast(r):
+    return GAST(
+        np.arange(K),
+        R=_u(r, 0.03, 0.08),
+        T1=_u(r, 0.1, 0.5),
+        T2=_u(r, 0.05, 0.5),
+        T3=_u(r, 1.0, 5.0),
+        AT=_u(r, 1.0, 1.2),
+        KT=_u(r, 1.0, 3.0),
+        VMAX=_u(r, 1.0, 1.2),
+        VMIN=_u(r, -0.1, 0.0),
+        Dturb=_u(r, 0.0, 0.5, 0.3),
+    )
+
+
 def _st2cut(r):
     t6, t8, t10 = (_u(r, 0.02, 0.1, 0.3) for _ in range(3))
     return ST2CUT(
@@ -153,6 +169,7 @@ MODELS = {
     "IEEEG1": (_ieeeg1, lambda r: _u(r, 0.3, 0.6)),
     "HYGOV": (_hygov, lambda r: _u(r, 0.3, 0.8)),
     "IEESGO": (_ieesgo, lambda r: _u(r, 0.3, 0.9)),
+    "GAST": (_gast, lambda r: _u(r, 0.3, 0.8)),
     "ST2CUT": (_st2cut, lambda r: np.zeros(K)),
     "STAB2A": (_stab2a, lambda r: np.zeros(K)),
 }
@@ -252,6 +269,19 @@ def test_ieesgo_transfer_function():
         )
         gov = -p["K1"] * _ll(s, p["T2"], p["T3"]) * _lag(s, p["T1"])
         _assert_tf(h[i], gov * _lag(s, p["T4"]) * turb)
+
+
+def test_gast_transfer_function_below_the_load_limit():
+    """-(1/R)/((1 + s T1)(1 + s T2)) - Dturb: the low-value gate passes the speed
+    governor while the operating point is below AT, and x3 then reaches nothing."""
+    r = np.random.default_rng(12)
+    dev, y0, meas = _gast(r), _u(r, 0.3, 0.8), _meas(r)
+    h = _frequency_response(dev, meas, y0, "omega", WS)
+    s = 1j * WS
+    for i in range(K):
+        p = _p(dev, i)
+        want = -1 / p["R"] * _lag(s, p["T1"]) * _lag(s, p["T2"]) - p["Dturb"]
+        _assert_tf(h[i], want)
 
 
 def test_hygov_transfer_function_is_the_linearized_water_column():
@@ -379,7 +409,7 @@ def test_ieeest_refuses_only_an_improper_filter():
 
 @functools.cache
 def _limit_runs():
-    ts = np.linspace(0.0, 3.0, 31)
+    ts = np.linspace(0.0, 20.0, 201)
     g1 = IEEEG1(
         [0, 1],
         JBUS=[0, 0],
@@ -416,6 +446,18 @@ def _limit_runs():
         qNL=0.08,
     )
     h0 = {"omega": jnp.zeros(1)}
+    ga = GAST(
+        [0],
+        R=0.05,
+        T1=0.2,
+        T2=0.1,
+        T3=1.0,
+        AT=0.9,
+        KT=2.0,
+        VMAX=1.5,
+        VMIN=0.0,
+        Dturb=0.0,
+    )
     cases = {
         # device 0: a 1% underspeed asks 0.5 + 0.2: the valve opens at UO = 0.1 pu/s
         # device 1: a 3% underspeed with fast rates asks 1.1: it stops at PMAX = 0.9
@@ -429,6 +471,12 @@ def _limit_runs():
             hy,
             *hy.init(jnp.array([0.7]), h0),
             lambda t: {"omega": 0.02 + 0 * t},
+        ),
+        # a 5% underspeed asks 0.6 + 1: the load limit takes over
+        "gast": (
+            ga,
+            *ga.init(jnp.array([0.6]), h0),
+            lambda t: {"omega": -0.05 + 0 * t},
         ),
     }
     return ts, _solve(cases, ts)
@@ -458,7 +506,19 @@ def test_hygov_gate_velocity_limit():
     c0 = 0.7 / 1.2 + 0.08
     early = (ts > 0.3) & (ts <= 1.0)
     np.testing.assert_allclose(np.diff(xs[early, 1, 0]) / 0.1, -0.02, atol=1e-6)
-    assert c0 - 0.02 * 3.0 - 1e-6 <= xs[-1, 1, 0] < c0 - 0.02 * 2.5
+    c3 = xs[ts == 3.0, 1, 0][0]
+    assert c0 - 0.02 * 3.0 - 1e-6 <= c3 < c0 - 0.02 * 2.5
+
+
+def test_gast_load_limit_takes_over():
+    """A 5% underspeed asks the valve for 0.6 + 0.05/0.05 = 1.6; the low-value gate
+    then passes the load limit AT + KT (AT - x3), whose loop settles where x3 = AT:
+    Pm = AT = 0.9 (closed form of the loop's fixed point, reached within 1e-6 by
+    20 s), below VMAX = 1.5."""
+    ts, res = _limit_runs()
+    out, xs = res["gast"]
+    np.testing.assert_allclose(out[-1, 0], 0.9, atol=1e-6)
+    assert np.max(out[:, 0]) < 1.5
 
 
 # ---------------------------------------------------------------------------
@@ -469,6 +529,7 @@ GRAD_PARAMS = {
     "IEEEG1": "K",
     "HYGOV": "TW",
     "IEESGO": "K2",
+    "GAST": "T2",
     "ST2CUT": "T3",
     "STAB2A": "K4",
     "IEEEST": "A6",
@@ -480,6 +541,10 @@ def _grad_devices():
     one = {n: m[0](r) for n, m in MODELS.items()}
     devs = {n: jax.tree_util.tree_map(lambda a: a[:1], d) for n, d in one.items()}
     devs["IEEEST"] = _ieeest_full(IEEEST_A[:, :1])
+    st = devs["ST2CUT"]  # both inputs in use: speed and electrical power
+    devs["ST2CUT"] = eqx.tree_at(
+        lambda d: (d.ICS1, d.ICS2), st, (np.array([1]), np.array([3]))
+    )
     return devs
 
 
@@ -489,7 +554,7 @@ def _step_output(values):
     lax.scan, cheap to compile and differentiate (the gradient and the differences
     see the same discretization)."""
     devs = _grad_devices()
-    y0 = {"IEEEG1": 0.5, "HYGOV": 0.6, "IEESGO": 0.6}
+    y0 = {"IEEEG1": 0.5, "HYGOV": 0.6, "IEESGO": 0.6, "GAST": 0.6}
     cases = {}
     for k, (n, par) in enumerate(GRAD_PARAMS.items()):
         d = eqx.tree_at(lambda d, par=par: getattr(d, par), devs[n], values[k : k + 1])
@@ -545,7 +610,8 @@ def _andes():
     d = json.loads(FIXTURE.read_text())
     ts, te = np.asarray(d["t"]), d["t_event"]
     cases = {}
-    for name, cls in (("IEEEG1", IEEEG1), ("HYGOV", HYGOV), ("IEESGO", IEESGO)):
+    govs = (("IEEEG1", IEEEG1), ("HYGOV", HYGOV), ("IEESGO", IEESGO), ("GAST", GAST))
+    for name, cls in govs:
         rec = d[name]
         dev = cls.from_params([0], [rec["params"]])
         w = _interp(ts, rec["omega"], te)
@@ -569,26 +635,32 @@ def _andes():
     return d, _solve(cases, ts, jumps=(te,))
 
 
-@pytest.mark.parametrize("name", ["IEEEG1", "HYGOV", "IEESGO"])
+@pytest.mark.parametrize("name", ["IEEEG1", "HYGOV", "IEESGO", "GAST"])
 def test_governor_against_andes(name):
     """Driven by ANDES's recorded speed after the line trip, the mechanical power
     follows ANDES's to 1e-3 of its swing. The parameters are PSS/E's for the model
-    ANDES ran (the fixture's `params`: ANDES applies IEEEG1's UO, UC, IESGO's K1 and
+    ANDES ran (the fixture's `params`: ANDES applies IEEEG1's UO, UC, IEESGO's K1 and
     HYGOV's TW, Dturb on the system base); IEEEG1 has K1 + K3 + K5 + K7 = 1, where
     ANDES's normalization of the K's changes nothing, and its valve rate limit
     binds; HYGOV has r Tr = Sn/Sb, where ANDES's integral gain is PSS/E's."""
     d, res = _andes()
     rec = d[name]
-    assert np.ptp(rec["Pm"]) > 5e-3
+    assert np.ptp(rec["Pm"]) > 4e-3
     assert _rel_err(res[name][0][:, 0], rec["Pm"]) < 1e-3
 
 
 def test_st2cut_against_andes():
-    """Two inputs, speed (ICS1 = 1) and electrical power (ICS2 = 3)."""
+    """Two inputs, speed (ICS1 = 1) and electrical power (ICS2 = 3): within 1e-4 of
+    the output's swing from 100 ms after the trip on, and within 2e-3 at the first
+    sample after it (6 ms), where ANDES's 2 ms trapezoid step smooths the jump of
+    the power signal through the lead-lags (1.4e-3 there)."""
     d, res = _andes()
     rec = d["ST2CUT"]
     assert np.ptp(rec["Vs"]) > 0.05
-    assert _rel_err(res["ST2CUT"][0][:, 0], rec["Vs"]) < 1e-3
+    out, want = res["ST2CUT"][0][:, 0], np.asarray(rec["Vs"])
+    assert _rel_err(out, want) < 2e-3
+    after = np.asarray(d["t"]) >= d["t_event"] + 0.1
+    assert np.max(np.abs(out - want)[after]) / np.ptp(want) < 1e-4
 
 
 # ---------------------------------------------------------------------------
@@ -611,14 +683,14 @@ KUNDUR_DYR = """\
 3 'IEESGO' 1 0.01 0.0 0.15 0.3 8.0 0.4 20.0 0.7 0.43 1.0 0.0 /
 4 'GENROU' 1 8.0 0.03 0.4 0.05 6.175 0.0 1.8 1.7 0.3 0.55 0.25 0.2 0.039175 0.22268 /
 4 'SEXS' 1 1.0 1.0 200.0 0.01 -6.4 7.0 /
-4 'TGOV1' 1 0.05 0.5 1.0 0.0 2.1 7.0 0.0 /
+4 'GAST' 1 0.05 0.4 0.1 3.0 1.0 2.0 1.0 0.0 0.1 /
 """
 
 
 def test_kundur_with_every_new_model_starts_at_an_exact_equilibrium(tmp_path):
     """Kundur's four GENROU machines with an IEEEG1 + ST2CUT (speed and power),
     a HYGOV + STAB2A (Nordic 44's data), an IEESGO (Nordic 44's, K1 = 20) + IEEEST
-    with A3 = A4 = 0 and A6 != 0, and a TGOV1: every derivative at t = 0 is below
+    with A3 = A4 = 0 and A6 != 0, and a GAST: every derivative at t = 0 is below
     1e-8, and the governors hold the machines' Pm0."""
     from smibjax.grid.case import case_files, load_case
     from smibjax.grid.loop import evaluate, state_labels
@@ -630,7 +702,7 @@ def test_kundur_with_every_new_model_starts_at_an_exact_equilibrium(tmp_path):
     case = load_case(case_files("kundur")[0], dyr)
     names = sorted(type(c).__name__ for c in case.controllers)
     assert names == sorted(
-        ["IEEEG1", "HYGOV", "IEESGO", "TGOV1", "ST2CUT", "STAB2A", "IEEEST", "SEXS"]
+        ["IEEEG1", "HYGOV", "IEESGO", "GAST", "ST2CUT", "STAB2A", "IEEEST", "SEXS"]
     )
     op, _ = operating_point(case)
 
@@ -678,6 +750,9 @@ def _rec(cls, **over):
             ICS2=3,
             IB2=0,
         ),
+        "GAST": dict(
+            zip(GAST.con_names, [0.05, 0.4, 0.1, 3, 1, 2, 1, 0, 0.1], strict=True)
+        ),
         "STAB2A": dict(
             zip(STAB2A.con_names, [1, 4.5, 0.87, 2, 0.087, 1, 0.01, 0.04], strict=True)
         ),
@@ -710,6 +785,7 @@ def _rec(cls, **over):
         (ST2CUT, {"ICS2": 2}, r"^ST2CUT\.ICS2 = 2 is not supported"),
         (ST2CUT, {"ICS1": 5, "IB1": 7}, r"^ST2CUT\.IB1 = 7 is not supported"),
         (ST2CUT, {"T4": 0.0}, r"^ST2CUT\.T4 = \[0\.\] is not allowed: must be > 0$"),
+        (GAST, {"T3": 0.0}, r"^GAST\.T3 = \[0\.\] is not allowed: must be > 0$"),
         (STAB2A, {"T2": -1.0}, r"^STAB2A\.T2 = \[-1\.\] is not allowed: must be > 0$"),
     ],
 )
@@ -723,3 +799,5 @@ def test_an_operating_point_beyond_the_valve_is_refused():
         _rec(IEEEG1).init(jnp.array([1.2]), {"omega": jnp.zeros(1)})
     with pytest.raises(ParameterError, match=r"^HYGOV\.Pm0 = \[1\.5\] is not allowed"):
         _rec(HYGOV).init(jnp.array([1.5]), {"omega": jnp.zeros(1)})
+    with pytest.raises(ParameterError, match=r"^GAST\.Pm0 = \[1\.1\] is not allowed"):
+        _rec(GAST).init(jnp.array([1.1]), {"omega": jnp.zeros(1)})

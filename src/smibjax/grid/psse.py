@@ -952,6 +952,7 @@ DYR_MODELS: dict[str, tuple[str, ...]] = {
         "VCL",
     ),
     "STAB2A": ("K2", "T2", "K3", "T3", "K4", "K5", "T5", "HLIM"),
+    "GAST": ("R", "T1", "T2", "T3", "AT", "KT", "VMAX", "VMIN", "Dturb"),
     # smibjax-specific, not a PSS/E model: the paper's synergetic excitation law on
     # a local SMIB equivalent (devices/synex.py)
     "SYNEX": (
@@ -998,6 +999,7 @@ DYR_KINDS: dict[str, str] = {
     "IEESGO": "governor",
     "ST2CUT": "pss",
     "STAB2A": "pss",
+    "GAST": "governor",
 }
 """What each dyr model is to its generator: a machine (one per generator in service),
 or an exciter, a stabilizer (pss) or a governor (at most one each, with a machine)."""

@@ -1,11 +1,11 @@
-"""Make andes_kundur_govpss.json: ANDES 2.0's IEEEG1, HYGOV, IEESGO and ST2CUT on
+"""Make andes_kundur_govpss.json: ANDES 2.0's IEEEG1, HYGOV, IEESGO, GAST, ST2CUT on
 the Kundur two-area case (andes/cases/kundur), after the case's own event: line
 Line_8 tripped at t = 2 s.
 
 Generator 1's governor is an IEEEG1 and its stabilizer an ST2CUT reading speed
 (ICS1 = 1) and electrical power (ICS2 = 3); generator 2's governor a HYGOV (with
 r Tr = Sn/Sb, where ANDES's integral gain equals PSS/E's 1/(r Tr)); generator 3's
-an IEESGO; generator 4 keeps its TGOV1. ANDES applies some governor parameters on
+an IEESGO; generator 4's a GAST. ANDES applies some governor parameters on
 the system base that PSS/E gives on the machine base (`machine_base`): each record
 keeps the dyr values ANDES read ("dyr") and the PSS/E parameters of the model ANDES
 ran ("params"), which smibjax reads. Each record holds one device's measured inputs
@@ -107,6 +107,9 @@ ST2CUT = dict(
     VCU=0.0,
     VCL=0.0,
 )
+GAST = dict(
+    R=0.05, T1=0.4, T2=0.1, T3=3.0, AT=1.0, KT=2.0, VMAX=1.0, VMIN=0.0, Dturb=0.1
+)
 ICONS = {"IEEEG1": ("JBUS", "M"), "ST2CUT": ("ICS1", "IB1", "ICS2", "IB2")}
 
 
@@ -142,12 +145,13 @@ def _record(bus, model, p):
 
 def dyr_text() -> str:
     text = (CASES / "kundur_full.dyr").read_text()
-    for bus in (1, 2, 3):  # these generators' TGOV1 records are replaced
+    for bus in (1, 2, 3, 4):  # the generators' TGOV1 records are replaced
         text = re.sub(rf"\s*{bus} 'TGOV1'  1[^/]*/", "\n", text, count=1)
     text += _record(1, "IEEEG1", IEEEG1)
     text += _record(1, "ST2CUT", ST2CUT)
     text += _record(2, "HYGOV", HYGOV)
     text += _record(3, "IEESGO", IEESGO)
+    text += _record(4, "GAST", GAST)
     return text
 
 
@@ -195,8 +199,8 @@ def main() -> None:
 
     out = {
         "source": "ANDES " + andes.__version__ + ", andes/cases/kundur (kundur.raw, "
-        "kundur_full.dyr with generators 1-3's governors an IEEEG1, a HYGOV and an "
-        "IEESGO, and an ST2CUT on generator 1), line Line_8 tripped at t = 2 s; fixed "
+        "kundur_full.dyr with the governors an IEEEG1, a HYGOV, an IEESGO and a "
+        "GAST, and an ST2CUT on generator 1), line Line_8 tripped at t = 2 s; fixed "
         "step 2 ms, samples every 10 ms; made by "
         "tests/data/controls/make_andes_govpss.py",
         "t_event": 2.0,
@@ -204,6 +208,7 @@ def main() -> None:
         "IEEEG1": gov("IEEEG1", IEEEG1),
         "HYGOV": gov("HYGOV", HYGOV),
         "IEESGO": gov("IEESGO", IEESGO),
+        "GAST": gov("GAST", GAST),
         "ST2CUT": {
             "params": ST2CUT,
             "signal1": rnd(y(ss.ST2CUT.sig)),

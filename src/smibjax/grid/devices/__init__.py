@@ -18,6 +18,7 @@ from .tgov1 import TGOV1 as TGOV1
 
 # isort: split
 # governors and stabilizers of issue 45
+from .gast import GAST as GAST
 from .hygov import HYGOV as HYGOV
 from .ieeeg1 import IEEEG1 as IEEEG1
 from .ieesgo import IEESGO as IEESGO
