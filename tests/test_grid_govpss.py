@@ -20,6 +20,7 @@ from smibjax.grid.devices.hygov import HYGOV
 from smibjax.grid.devices.ieeeg1 import IEEEG1
 from smibjax.grid.devices.ieeest import IEEEST
 from smibjax.grid.devices.ieesgo import IEESGO
+from smibjax.grid.devices.pss2 import PSS2A, PSS2B
 from smibjax.grid.devices.st2cut import ST2CUT
 from smibjax.grid.devices.stab2a import STAB2A
 from test_grid_controls import _interp, _rel_err, _solve
@@ -404,6 +405,108 @@ def test_ieeest_refuses_only_an_improper_filter():
 
 
 # ---------------------------------------------------------------------------
+# PSS2A, PSS2B (not in ANDES): transfer functions of IEEE 421.5's diagram
+
+
+def _pss2(cls, r, n=K):
+    def u(lo, hi, z=0.0):
+        x = r.uniform(lo, hi, n)
+        x[r.uniform(size=n) < z] = 0.0
+        return x
+
+    t2, t4 = u(0.02, 0.1, 0.3), u(0.02, 0.1, 0.3)
+    M = r.integers(0, 6, n)
+    N = np.where(M > 0, r.integers(1, 9, n) // np.maximum(M, 1), r.integers(0, 3, n))
+    N = np.minimum(N, 8 // np.maximum(M, 1))
+    p = dict(
+        ICS1=np.ones(n, int),
+        IB1=np.zeros(n, int),
+        ICS2=np.full(n, 3),
+        IB2=np.zeros(n, int),
+        M=M,
+        N=N,
+        TW1=u(1.0, 10.0),
+        TW2=u(1.0, 10.0, 0.3),
+        T6=u(0.0, 0.05, 0.3),
+        TW3=u(1.0, 10.0),
+        TW4=u(1.0, 10.0, 0.3),
+        T7=u(1.0, 10.0, 0.2),
+        KS2=u(0.1, 1.0),
+        KS3=u(0.5, 1.5),
+        T8=u(0.2, 0.6),
+        T9=u(0.05, 0.2),
+        KS1=u(5.0, 20.0),
+        T1=np.where(t2 > 0, u(0.1, 0.3), 0.0),
+        T2=t2,
+        T3=np.where(t4 > 0, u(0.1, 0.3), 0.0),
+        T4=t4,
+        VSTMAX=np.full(n, 10.0),
+        VSTMIN=np.full(n, -10.0),
+    )
+    if cls is PSS2B:
+        t11 = u(0.02, 0.1, 0.3)
+        p.update(
+            T10=np.where(t11 > 0, u(0.1, 0.3), 0.0),
+            T11=t11,
+            VS1MAX=np.full(n, 10.0),
+            VS1MIN=np.full(n, -10.0),
+            VS2MAX=np.full(n, 10.0),
+            VS2MIN=np.full(n, -10.0),
+        )
+    return cls(np.arange(n), **p)
+
+
+def _wo(s, T):
+    return s * T * _lag(s, T) if T > 0 else 1.0
+
+
+@pytest.mark.parametrize("cls", [PSS2A, PSS2B])
+@pytest.mark.parametrize("key", ["omega", "Pe"])
+def test_pss2_transfer_functions_of_both_channels(cls, key):
+    """From speed (channel 1): KS1 R(s) W1 W2/(1 + s T6) LL; from power (channel 2):
+    KS1 (KS3 R(s) - 1) W3 W4 KS2/(1 + s T7) LL, with R(s) = [(1 + s T8)/(1 + s
+    T9)^M]^N (1 where M N = 0), Wi = s TWi/(1 + s TWi) (1 where TWi = 0 for the
+    second washouts), LL the lead-lags (1 + s T1)/(1 + s T2) (1 + s T3)/(1 + s T4)
+    [PSS2B: (1 + s T10)/(1 + s T11)] (IEEE Std 421.5-2005, PSS2A/PSS2B)."""
+    r = np.random.default_rng(21)
+    dev, meas = _pss2(cls, r), _meas(r)
+    assert (np.asarray(dev.M) * np.asarray(dev.N) == 0).any()
+    assert (np.asarray(dev.M) * np.asarray(dev.N) > 1).any()
+    h = _frequency_response(dev, meas, np.zeros(K), key, WS)
+    s = 1j * WS
+    for i in range(K):
+        p = {
+            f: float(np.asarray(getattr(dev, f))[i]) for f in ("M", "N", *dev.con_names)
+        }
+        M, N = int(p["M"]), int(p["N"])
+        R = ((1 + s * p["T8"]) * _lag(s, p["T9"]) ** M) ** N if M * N else 1.0
+        LL = _ll(s, p["T1"], p["T2"]) * _ll(s, p["T3"], p["T4"])
+        if cls is PSS2B:
+            LL = LL * _ll(s, p["T10"], p["T11"])
+        if key == "omega":
+            ch = R * _wo(s, p["TW1"]) * _wo(s, p["TW2"]) * _lag(s, p["T6"])
+        else:
+            ch = (p["KS3"] * R - 1) * _wo(s, p["TW3"]) * _wo(s, p["TW4"])
+            ch = ch * p["KS2"] * _lag(s, p["T7"])
+        _assert_tf(h[i], p["KS1"] * ch * LL)
+
+
+def test_pss2b_input_limits_clip_the_signal():
+    """PSS2B's input limits: a speed beyond VS1MAX reaches the washouts clipped (the
+    first washout's derivative is (clip(u) - x)/TW1)."""
+    r = np.random.default_rng(22)
+    dev = _pss2(PSS2B, r, n=1)
+    dev = eqx.tree_at(
+        lambda d: (d.VS1MAX, d.VS1MIN), dev, (np.array([0.01]), np.array([-0.01]))
+    )
+    meas = {"omega": jnp.zeros(1), "Pe": jnp.full(1, 0.5), "Vt": jnp.ones(1)}
+    x0, ref = dev.init(jnp.zeros(1), meas)
+    big = {**meas, "omega": jnp.full(1, 0.05)}
+    d = dev.rhs(x0, big, ref)
+    assert float(d[0, 0]) == pytest.approx(0.01 / float(dev.TW1[0]), rel=1e-12)
+
+
+# ---------------------------------------------------------------------------
 # limits against closed forms
 
 
@@ -512,13 +615,19 @@ def test_hygov_gate_velocity_limit():
 
 def test_gast_load_limit_takes_over():
     """A 5% underspeed asks the valve for 0.6 + 0.05/0.05 = 1.6; the low-value gate
-    then passes the load limit AT + KT (AT - x3), whose loop settles where x3 = AT:
-    Pm = AT = 0.9 (closed form of the loop's fixed point, reached within 1e-6 by
-    20 s), below VMAX = 1.5."""
+    passes the load limit AT + KT (AT - x3) <= 1.5 from t = 0 on, so the states
+    follow the linear loop x' = A (x - AT) exactly: x(t) = AT + expm(A t)(x0 - AT)
+    with A = [[-1/T1, 0, -KT/T1], [1/T2, -1/T2, 0], [0, 1/T3, -1/T3]] (closed form),
+    settling at Pm = AT = 0.9, below VMAX = 1.5."""
+    from scipy.linalg import expm
+
     ts, res = _limit_runs()
     out, xs = res["gast"]
-    np.testing.assert_allclose(out[-1, 0], 0.9, atol=1e-6)
-    assert np.max(out[:, 0]) < 1.5
+    T1, T2, T3, KT, AT = 0.2, 0.1, 1.0, 2.0, 0.9
+    A = np.array([[-1 / T1, 0, -KT / T1], [1 / T2, -1 / T2, 0], [0, 1 / T3, -1 / T3]])
+    want = np.array([AT + expm(A * t) @ np.full(3, 0.6 - AT) for t in ts])
+    np.testing.assert_allclose(xs[:, :, 0], want, atol=1e-7)
+    np.testing.assert_allclose(out[-1, 0], AT, atol=1e-6)
 
 
 # ---------------------------------------------------------------------------
@@ -533,6 +642,7 @@ GRAD_PARAMS = {
     "ST2CUT": "T3",
     "STAB2A": "K4",
     "IEEEST": "A6",
+    "PSS2A": "KS3",
 }
 
 
@@ -541,6 +651,7 @@ def _grad_devices():
     one = {n: m[0](r) for n, m in MODELS.items()}
     devs = {n: jax.tree_util.tree_map(lambda a: a[:1], d) for n, d in one.items()}
     devs["IEEEST"] = _ieeest_full(IEEEST_A[:, :1])
+    devs["PSS2A"] = _pss2(PSS2A, np.random.default_rng(13), n=1)
     st = devs["ST2CUT"]  # both inputs in use: speed and electrical power
     devs["ST2CUT"] = eqx.tree_at(
         lambda d: (d.ICS1, d.ICS2), st, (np.array([1]), np.array([3]))
@@ -684,13 +795,16 @@ KUNDUR_DYR = """\
 4 'GENROU' 1 8.0 0.03 0.4 0.05 6.175 0.0 1.8 1.7 0.3 0.55 0.25 0.2 0.039175 0.22268 /
 4 'SEXS' 1 1.0 1.0 200.0 0.01 -6.4 7.0 /
 4 'GAST' 1 0.05 0.4 0.1 3.0 1.0 2.0 1.0 0.0 0.1 /
+4 'PSS2B' 1 1 0 3 0 5 1 10.0 10.0 0.0 10.0 0.0 10.0 1.0 1.0 0.5 0.1 20.0 0.15 0.025
+   0.15 0.025 0.0 0.0 0.2 -0.2 2.0 -2.0 0.1 -0.1 /
 """
 
 
 def test_kundur_with_every_new_model_starts_at_an_exact_equilibrium(tmp_path):
     """Kundur's four GENROU machines with an IEEEG1 + ST2CUT (speed and power),
     a HYGOV + STAB2A (Nordic 44's data), an IEESGO (Nordic 44's, K1 = 20) + IEEEST
-    with A3 = A4 = 0 and A6 != 0, and a GAST: every derivative at t = 0 is below
+    with A3 = A4 = 0 and A6 != 0, and a GAST + PSS2B (speed and power, M = 5,
+    N = 1, TW4 = 0): every derivative at t = 0 is below
     1e-8, and the governors hold the machines' Pm0."""
     from smibjax.grid.case import case_files, load_case
     from smibjax.grid.loop import evaluate, state_labels
@@ -702,7 +816,8 @@ def test_kundur_with_every_new_model_starts_at_an_exact_equilibrium(tmp_path):
     case = load_case(case_files("kundur")[0], dyr)
     names = sorted(type(c).__name__ for c in case.controllers)
     assert names == sorted(
-        ["IEEEG1", "HYGOV", "IEESGO", "GAST", "ST2CUT", "STAB2A", "IEEEST", "SEXS"]
+        ["IEEEG1", "HYGOV", "IEESGO", "GAST", "ST2CUT", "STAB2A", "IEEEST", "PSS2B"]
+        + ["SEXS"]
     )
     op, _ = operating_point(case)
 

@@ -549,6 +549,8 @@ def test_dyr_skip_unsupported(tmp_path):
 SUPPORTED = (
     "GENCLS, GENTRA, GENROU, SEXS, IEEEX1, EXDC2, EXST1, IEEEST, STAB1, TGOV1, CSVGN1, "
     "SYNEX"
+    # governors and stabilizers of issue 45
+    ", IEEEG1, HYGOV, IEESGO, ST2CUT, STAB2A, GAST, PSS2A, PSS2B"
 )
 
 

@@ -22,5 +22,7 @@ from .gast import GAST as GAST
 from .hygov import HYGOV as HYGOV
 from .ieeeg1 import IEEEG1 as IEEEG1
 from .ieesgo import IEESGO as IEESGO
+from .pss2 import PSS2A as PSS2A
+from .pss2 import PSS2B as PSS2B
 from .st2cut import ST2CUT as ST2CUT
 from .stab2a import STAB2A as STAB2A
