@@ -829,6 +829,12 @@ def test_dyr_order_against_andes_yaml():
         "EXST1",
         "IEEEST",
         "TGOV1",
+        # governors and stabilizers of issue 45
+        "IEEEG1",
+        "HYGOV",
+        "IEESGO",
+        "ST2CUT",
+        "GAST",
     ]
     # our name -> ANDES's, where they differ
     alias = {
@@ -839,6 +845,10 @@ def test_dyr_order_against_andes_yaml():
     for m in both:
         theirs = table[m]["inputs"][2:]  # after BUS, ID
         names = {**alias, "KF": "KF1"} if m in ("IEEEX1", "EXDC2") else alias
+        # governors and stabilizers of issue 45
+        names = {**names, "JBUS": "BUS2", "M": "ID2", "TW": "Tw", "ICS1": "MODE"}
+        names |= {"IB1": "BUSR", "ICS2": "MODE2", "IB2": "BUSR2"}
+        names |= {"Dturb": "Dt"} if m == "GAST" else {}
         assert [names.get(n, n) for n in psse.DYR_MODELS[m]] == theirs, m
 
 
