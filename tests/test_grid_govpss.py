@@ -404,6 +404,19 @@ def test_ieeest_refuses_only_an_improper_filter():
         _ieeest_full(bad)
 
 
+def test_ieeest_remote_bus_is_ignored_for_speed_and_power():
+    """IB names the bus of a bus signal (ICS 2, 5, 6): with ICS 1 or 3 PSS/E reads
+    it and ignores it, so IB = 7 loads and gives IB = 0's output."""
+    a = _ieeest_full(IEEEST_A)
+    b = eqx.tree_at(lambda d: d.IB, a, np.full(4, 7))
+    IEEEST(**{f: getattr(b, f) for f in ("gen", "ICS", "IB", *IEEEST.con_names)})
+    meas = {"omega": jnp.full(4, 1e-3), "Pe": jnp.zeros(4), "Vt": jnp.ones(4)}
+    x0, ref = a.init(jnp.zeros(4), meas)
+    m1 = {**meas, "omega": jnp.full(4, 2e-3)}
+    np.testing.assert_array_equal(a.out(x0, m1, ref), b.out(x0, m1, ref))
+    assert float(jnp.max(jnp.abs(a.out(x0, m1, ref)))) > 0
+
+
 # ---------------------------------------------------------------------------
 # PSS2A, PSS2B (not in ANDES): transfer functions of IEEE 421.5's diagram
 
