@@ -102,6 +102,21 @@ CASES = {
         7,
         (("gen", 2, 0, 1.5),),
     ),
+    # ANDES's full files (issue 45's target: 1e-2 rad over 10 s), every record but
+    # the Toggle (ANDES's own line switching, not PSS/E's): ESST3A, ST2CUT, IEEEG1,
+    # IEEEST, ESDC2A as PSS/E defines them in both programs
+    "andes ieee14 full bus 4": (
+        "andes:ieee14/ieee14.raw",
+        "andes:ieee14/ieee14.dyr|GENROU,EXST1,ESST3A,IEEEST,ST2CUT,TGOV1,IEEEG1",
+        "GENROU",
+        4,
+    ),
+    "andes wecc full bus 2": (
+        "andes:wecc/wecc.raw",
+        "andes:wecc/wecc_full.dyr|GENROU,ESDC2A,ESST3A,EXST1,IEEEG1,IEEEST,ST2CUT",
+        "GENROU",
+        2,
+    ),
     "andes ieee14 GENROU+EXST1+TGOV1 bus 4": (
         "andes:ieee14/ieee14.raw",
         "andes:ieee14/ieee14.dyr|GENROU,EXST1,TGOV1",

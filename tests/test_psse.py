@@ -541,7 +541,7 @@ def test_dyr_skip_unsupported(tmp_path):
     path = tmp_path / "x.dyr"
     path.write_text(
         "1 'GENCLS' 1 3.0 0.0 /\n1 'USRMDL' 1 2 3 /\n2 'USRMDL' 1 4 /\n"
-        "Line 'Toggle' Line_8 2.0 /\n3 'HYGOV' 1 5 /\n"
+        "Line 'Toggle' Line_8 2.0 /\n3 'WT3G1' 1 5 /\n"
     )
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
@@ -553,16 +553,16 @@ def test_dyr_skip_unsupported(tmp_path):
     )
     assert [str(w.message) for w in caught] == [
         toggle,
-        f"{path}:2: dyr models 'USRMDL', 'HYGOV' are not supported; their records "
-        "are skipped ('USRMDL': 2 records from line 2; 'HYGOV': 1 record from line 5)",
+        f"{path}:2: dyr models 'USRMDL', 'WT3G1' are not supported; their records "
+        "are skipped ('USRMDL': 2 records from line 2; 'WT3G1': 1 record from line 5)",
     ]
-    assert psse.unsupported_models(path) == ["USRMDL", "HYGOV"]
+    assert psse.unsupported_models(path) == ["USRMDL", "WT3G1"]
     # without skip_unsupported: one refusal naming both, and how to skip them
     with pytest.raises(psse.PsseError) as err:
         psse.read_dyr(path)
     assert str(err.value) == (
-        f"{path}:2: dyr models 'USRMDL', 'HYGOV' are not supported (supported: "
-        f"{SUPPORTED}); 'USRMDL': 2 records from line 2; 'HYGOV': 1 record from line "
+        f"{path}:2: dyr models 'USRMDL', 'WT3G1' are not supported (supported: "
+        f"{SUPPORTED}); 'USRMDL': 2 records from line 2; 'WT3G1': 1 record from line "
         "5; " + SKIP
     )
     # a Toggle alone is not a refusal
@@ -853,6 +853,17 @@ def test_dyr_order_against_andes_yaml():
         "EXST1",
         "IEEEST",
         "TGOV1",
+        # exciters and the compensator of issue 45
+        "ESST3A",
+        "ESDC2A",
+        "SCRX",  # ANDES reads it into its SEXS
+        "IEEEVC",
+        # governors and stabilizers of issue 45
+        "IEEEG1",
+        "HYGOV",
+        "IEESGO",
+        "ST2CUT",
+        "GAST",
     ]
     # our name -> ANDES's, where they differ
     alias = {
@@ -863,6 +874,10 @@ def test_dyr_order_against_andes_yaml():
     for m in both:
         theirs = table[m]["inputs"][2:]  # after BUS, ID
         names = {**alias, "KF": "KF1"} if m in ("IEEEX1", "EXDC2") else alias
+        # governors and stabilizers of issue 45
+        names = {**names, "JBUS": "BUS2", "M": "ID2", "TW": "Tw", "ICS1": "MODE"}
+        names |= {"IB1": "BUSR", "ICS2": "MODE2", "IB2": "BUSR2"}
+        names |= {"Dturb": "Dt"} if m == "GAST" else {}
         assert [names.get(n, n) for n in psse.DYR_MODELS[m]] == theirs, m
 
 
@@ -971,12 +986,12 @@ def test_every_command_refuses_unsupported_models_in_one_line(
     dyr = tmp_path / "x.dyr"
     dyr.write_text(
         case_file("smib_gencls.dyr").read_text()
-        + "     1 'ESST3A' 1  0.02 0.2 -0.2 /\n     1 'IEEEG1' 1  1 2 3 /\n"
+        + "     1 'WT3E1' 1  0.02 0.2 -0.2 /\n     1 'WT3G1' 1  1 2 3 /\n"
     )
     out = tmp_path / "out"
     argv = [command, "--case", str(case_file("smib.raw")), "--dyr", str(dyr)]
     assert main([*argv, "--out", str(out)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1, err
-    assert "dyr models 'ESST3A', 'IEEEG1' are not supported" in err[0]
+    assert "dyr models 'WT3E1', 'WT3G1' are not supported" in err[0]
     assert "--skip-unsupported" in err[0] and not out.exists()

@@ -23,6 +23,16 @@ from .tgov1 import TGOV1 as TGOV1
 # issue 45: exciters and the load compensator
 from .esdc2a import ESDC2A as ESDC2A
 from .esst3a import ESST3A as ESST3A
+
+# governors and stabilizers of issue 45
+from .gast import GAST as GAST
+from .hygov import HYGOV as HYGOV
+from .ieeeg1 import IEEEG1 as IEEEG1
 from .ieeet2 import IEEET2 as IEEET2
 from .ieeevc import IEEEVC as IEEEVC
+from .ieesgo import IEESGO as IEESGO
+from .pss2 import PSS2A as PSS2A
+from .pss2 import PSS2B as PSS2B
 from .scrx import SCRX as SCRX
+from .st2cut import ST2CUT as ST2CUT
+from .stab2a import STAB2A as STAB2A
