@@ -548,7 +548,7 @@ def test_dyr_skip_unsupported(tmp_path):
 
 SUPPORTED = (
     "GENCLS, GENTRA, GENROU, SEXS, IEEEX1, EXDC2, EXST1, IEEEST, STAB1, TGOV1, CSVGN1, "
-    "SYNEX"
+    "ESST3A, ESDC2A, SCRX, IEEET2, IEEEVC, SYNEX"
 )
 
 
@@ -827,12 +827,18 @@ def test_dyr_order_against_andes_yaml():
         "EXST1",
         "IEEEST",
         "TGOV1",
+        # issue 45's exciters and compensator (ANDES has no IEEET2)
+        "ESST3A",
+        "ESDC2A",
+        "SCRX",
+        "IEEEVC",
     ]
     # our name -> ANDES's, where they differ
     alias = {
         "Tdo_p": "Td10", "Tdo_pp": "Td20", "Tqo_p": "Tq10", "Tqo_pp": "Tq20",
         "Xd_p": "Xd1", "Xq_p": "Xq1", "Xd_pp": "Xd2", "TA_TB": "TATB",
         "SWITCH": "Switch", "ICS": "MODE", "IB": "BUSR",
+        "RC": "rc", "XC": "xc", "rc_rfd": "rcrfd",
     }  # fmt: skip
     for m in both:
         theirs = table[m]["inputs"][2:]  # after BUS, ID
