@@ -548,7 +548,7 @@ def test_dyr_skip_unsupported(tmp_path):
 
 SUPPORTED = (
     "GENCLS, GENTRA, GENROU, SEXS, IEEEX1, EXDC2, EXST1, IEEEST, STAB1, TGOV1, CSVGN1, "
-    "ESST3A, ESDC2A, SCRX, IEEET2, IEEEVC, SYNEX"
+    "ESST3A, ESDC2A, SCRX, IEEET2, IEEEVC, ESDC1A, IEEET1, SYNEX"
 )
 
 
@@ -832,6 +832,8 @@ def test_dyr_order_against_andes_yaml():
         "ESDC2A",
         "SCRX",
         "IEEEVC",
+        "ESDC1A",
+        "IEEET1",
     ]
     # our name -> ANDES's, where they differ
     alias = {

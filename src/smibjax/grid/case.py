@@ -39,7 +39,7 @@ MACHINES = ("GENCLS", "GENTRA", "GENROU")
 EXCITERS = ("SEXS", "IEEEX1", "EXDC2", "EXST1", "SYNEX")
 # issue 45: more PSS/E exciters, and the load compensator IEEEVC (it writes the
 # voltage the exciter regulates; grouped here as part of the excitation system)
-EXCITERS += ("ESST3A", "ESDC2A", "SCRX", "IEEET2", "IEEEVC")
+EXCITERS += ("ESST3A", "ESDC2A", "SCRX", "IEEET2", "IEEEVC", "ESDC1A", "IEEET1")
 STABILIZERS = ("IEEEST", "STAB1")
 GOVERNORS = ("TGOV1",)
 SVCS = ("CSVGN1",)

@@ -18,8 +18,10 @@ from .tgov1 import TGOV1 as TGOV1
 
 # isort: split
 # issue 45: exciters and the load compensator
+from .esdc2a import ESDC1A as ESDC1A
 from .esdc2a import ESDC2A as ESDC2A
 from .esst3a import ESST3A as ESST3A
+from .ieeet1 import IEEET1 as IEEET1
 from .ieeet2 import IEEET2 as IEEET2
 from .ieeevc import IEEEVC as IEEEVC
 from .scrx import SCRX as SCRX
