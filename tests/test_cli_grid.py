@@ -268,9 +268,10 @@ def test_cct_on_a_case_uses_the_commands_tolerances(tmp_path, monkeypatch, capsy
 
 
 def test_skip_unsupported_drops_the_records_with_one_warning(tmp_path, capsys):
-    """A dyr file with a record of a model smibjax lacks (a PSS/E user model, USRMDL, twice) is refused
-    in one line naming it; with --skip-unsupported the command warns once and runs
-    the case without it: the same angles as the file without those records."""
+    """A dyr file with a record of a model smibjax lacks (a PSS/E user model,
+    USRMDL, twice) is refused in one line naming it; with --skip-unsupported the
+    command warns once and runs the case without it: the same angles as the file
+    without those records."""
     from smibjax.grid.cases import case_file
 
     raw = case_file("smib.raw")

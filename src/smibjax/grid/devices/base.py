@@ -21,8 +21,9 @@ stabilizer reads "omega" or "Pe" and writes "Vs"; a governor reads "omega" and w
 "Pm". The closed loop adds, for every machine model, the terminal voltage and current
 phasors "Vt_re", "Vt_im", "It_re", "It_im" (current out of the terminal, machine
 base; `loop.terminal_phasors`), and "Vc", the voltage an exciter regulates: a load
-compensator's output (IEEEVC writes "Vc"), else Vt. The closed loop gathers each controller's inputs at its devices' positions and
-scatters its output back, so nothing indexes another model's states.
+compensator's output (IEEEVC writes "Vc"), else Vt. The closed loop gathers each
+controller's inputs at its devices' positions and scatters its output back, so
+nothing indexes another model's states.
 """
 
 from __future__ import annotations
