@@ -546,6 +546,24 @@ def test_bad_parameters_are_refused_in_one_line():
         one.init(jnp.array([1e4]), {k: v[:1] for k, v in m.items()})
 
 
+def test_a_bad_record_in_a_file_is_named_by_file_and_line(tmp_path):
+    """A negative SCRX TE on the file's third line: one line naming the file, the
+    line, the model and the parameter."""
+    raw, _ = case_files("smib")
+    dyr = tmp_path / "bad.dyr"
+    dyr.write_text(
+        " 1 'GENCLS' 1 3.0 0.0 /\n"
+        " 1 'SCRX' 1 0.1 10.0 200.0 0.05 -5.0 6.0 0.0 0.0 /\n"
+        " 3 'SCRX' 1 0.1 10.0 200.0 -0.05 -5.0 6.0 0.0 0.0 /\n"
+        " 3 'GENCLS' 1 0.0 0.0 /\n"
+    )
+    with pytest.raises(ParameterError) as err:
+        load_case(raw, dyr)
+    msg = str(err.value)
+    assert msg.startswith(f"{dyr}:3: SCRX.TE = [-0.05] is not allowed: must be >= 0")
+    assert "\n" not in msg
+
+
 # ---------------------------------------------------------------------------
 # ANDES 2.0 on its IEEE 14 case (tests/data/controls/make_andes_exciters.py)
 
