@@ -293,16 +293,17 @@ def test_cct_out_of_another_format_is_refused_before_the_run(tmp_path, capsys):
 
 
 def test_skip_unsupported_drops_the_records_with_one_warning(tmp_path, capsys):
-    """A dyr file with a record of a model smibjax lacks (ESST3A, twice) is refused
-    in one line naming it; with --skip-unsupported the command warns once and runs
-    the case without it: the same angles as the file without those records."""
+    """A dyr file with a record of a model smibjax lacks (a PSS/E user model,
+    USRMDL, twice) is refused in one line naming it; with --skip-unsupported the
+    command warns once and runs the case without it: the same angles as the file
+    without those records."""
     from smibjax.grid.cases import case_file
 
     raw = case_file("smib.raw")
     dyr = tmp_path / "extra.dyr"
     dyr.write_text(
         case_file("smib_gencls.dyr").read_text()
-        + "     1 'ESST3A' 1  0.02 0.2 -0.2 /\n     3 'ESST3A' 1  1 2 3 /\n"
+        + "     1 'USRMDL' 1  0.02 0.2 -0.2 /\n     3 'USRMDL' 1  1 2 3 /\n"
     )
     run = ["simulate", "--fault-bus", "2", "--fault-time", "0.2", "--clear-time", "0.3"]
     run += ["--t-end", "2"]
@@ -310,12 +311,12 @@ def test_skip_unsupported_drops_the_records_with_one_warning(tmp_path, capsys):
     out = tmp_path / "x.npz"
     assert main([*run, *base, "--out", str(out)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and "'ESST3A' is not supported (supported: GENCLS" in err[0]
+    assert len(err) == 1 and "'USRMDL' is not supported (supported: GENCLS" in err[0]
     assert not out.exists()
     assert main([*run, *base, "--skip-unsupported", "--out", str(out)]) == 0
     err = capsys.readouterr().err.strip().splitlines()
     warned = [e for e in err if e.startswith("smibjax: warning: ")]
-    assert len(warned) == 1 and "'ESST3A' is not supported" in warned[0]
+    assert len(warned) == 1 and "'USRMDL' is not supported" in warned[0]
     ref = tmp_path / "ref.npz"
     assert main([*run, "--case", "smib-gencls", "--out", str(ref)]) == 0
     np.testing.assert_array_equal(np.load(out)["delta"], np.load(ref)["delta"])

@@ -1,4 +1,5 @@
-"""The issue-45 exciters (smibjax.grid.devices: ESST3A, ESDC2A, SCRX, IEEET2) and the
+"""The issue-45 exciters (smibjax.grid.devices: ESST3A, ESDC2A, ESDC1A, SCRX, IEEET1,
+IEEET2) and the
 load compensator IEEEVC: equilibria (device by device and on a case), gradients
 against central differences, closed-form responses, PSS/E's DC-exciter
 initialization, bad data refused in one line, and ANDES 2.0 on its IEEE 14 case."""
@@ -16,8 +17,9 @@ import pytest
 from smibjax._validate import ParameterError
 from smibjax.grid.case import case_files, load_case
 from smibjax.grid.devices._blocks import fex
-from smibjax.grid.devices.esdc2a import ESDC2A
+from smibjax.grid.devices.esdc2a import ESDC1A, ESDC2A
 from smibjax.grid.devices.esst3a import ESST3A
+from smibjax.grid.devices.ieeet1 import IEEET1
 from smibjax.grid.devices.ieeet2 import IEEET2
 from smibjax.grid.devices.ieeevc import IEEEVC
 from smibjax.grid.devices.scrx import SCRX
@@ -88,6 +90,19 @@ def _esdc2a(r):
     )
 
 
+def _esdc1a(r):
+    return ESDC1A(**_fields(_esdc2a(r)))
+
+
+def _ieeet1(r):
+    d = _esdc2a(r)
+    return IEEET1(
+        gen=d.gen,
+        TF=d.TF1,
+        **{n: getattr(d, n) for n in IEEET1.con_names if n != "TF"},
+    )
+
+
 def _scrx(r):
     return SCRX(
         np.arange(K),
@@ -138,7 +153,14 @@ def _meas(r):
     }
 
 
-MODELS = {"ESST3A": _esst3a, "ESDC2A": _esdc2a, "SCRX": _scrx, "IEEET2": _ieeet2}
+MODELS = {
+    "ESST3A": _esst3a,
+    "ESDC2A": _esdc2a,
+    "ESDC1A": _esdc1a,
+    "SCRX": _scrx,
+    "IEEET1": _ieeet1,
+    "IEEET2": _ieeet2,
+}
 
 
 @pytest.mark.parametrize("name", list(MODELS))
@@ -263,7 +285,15 @@ def _perturbed(dev, y0, meas):
 
 
 @pytest.mark.parametrize(
-    "name,param", [("ESST3A", "KM"), ("ESDC2A", "KE"), ("SCRX", "K"), ("IEEET2", "KF")]
+    "name,param",
+    [
+        ("ESST3A", "KM"),
+        ("ESDC2A", "KE"),
+        ("ESDC1A", "TE"),
+        ("SCRX", "K"),
+        ("IEEET1", "KA"),
+        ("IEEET2", "KF"),
+    ],
 )
 def test_gradient_matches_central_differences(name, param):
     r = np.random.default_rng(2)
@@ -501,6 +531,9 @@ def test_bad_parameters_are_refused_in_one_line():
     dev = _ieeet2(r)
     with pytest.raises(ParameterError, match=r"^IEEET2\.TF1 = .* > 0 where KF"):
         IEEET2(**{**_fields(dev), "TF1": np.zeros(K), "KF": np.full(K, 0.05)})
+    dev = _ieeet1(r)
+    with pytest.raises(ParameterError, match=r"^IEEET1\.TF = .* > 0 where KF != 0$"):
+        IEEET1(**{**_fields(dev), "TF": np.zeros(K), "KF": np.full(K, 0.05)})
     dev = _esdc2a(r)
     with pytest.raises(ParameterError, match=r"^ESDC2A\.TE = .* must be > 0"):
         ESDC2A(**{**_fields(dev), "TE": -np.ones(K)})
@@ -511,6 +544,24 @@ def test_bad_parameters_are_refused_in_one_line():
         )
         m = _meas(r)
         one.init(jnp.array([1e4]), {k: v[:1] for k, v in m.items()})
+
+
+def test_a_bad_record_in_a_file_is_named_by_file_and_line(tmp_path):
+    """A negative SCRX TE on the file's third line: one line naming the file, the
+    line, the model and the parameter."""
+    raw, _ = case_files("smib")
+    dyr = tmp_path / "bad.dyr"
+    dyr.write_text(
+        " 1 'GENCLS' 1 3.0 0.0 /\n"
+        " 1 'SCRX' 1 0.1 10.0 200.0 0.05 -5.0 6.0 0.0 0.0 /\n"
+        " 3 'SCRX' 1 0.1 10.0 200.0 -0.05 -5.0 6.0 0.0 0.0 /\n"
+        " 3 'GENCLS' 1 0.0 0.0 /\n"
+    )
+    with pytest.raises(ParameterError) as err:
+        load_case(raw, dyr)
+    msg = str(err.value)
+    assert msg.startswith(f"{dyr}:3: SCRX.TE = [-0.05] is not allowed: must be >= 0")
+    assert "\n" not in msg
 
 
 # ---------------------------------------------------------------------------
@@ -547,12 +598,16 @@ def _interp(ts, v, events):
 @functools.cache
 def _andes(name):
     d = json.loads(FIXTURE.read_text())
+    if name == "IEEET1":  # the Kundur run
+        d = d["kundur"]
+        d[name].update({k: d[name]["Vt"] for k in ("vd", "vq", "Id", "Iq", "XadIfd")})
     ts, events = np.asarray(d["t"]), d["t_events"]
     rec = d[name]
     f = {
         k: _interp(ts, rec[k], events) for k in ("Vt", "vd", "vq", "Id", "Iq", "XadIfd")
     }
-    dev = {"ESST3A": ESST3A, "ESDC2A": ESDC2A}[name].from_params([0], [rec["params"]])
+    cls = {"ESST3A": ESST3A, "ESDC2A": ESDC2A, "IEEET1": IEEET1}[name]
+    dev = cls.from_params([0], [rec["params"]])
 
     def m(t):
         def g(k):
@@ -586,13 +641,15 @@ def _andes(name):
     return rec, np.asarray(out)[:, 0], float(np.asarray(ref).ravel()[0])
 
 
-@pytest.mark.parametrize("name", ["ESST3A", "ESDC2A"])
+@pytest.mark.parametrize("name", ["ESST3A", "ESDC2A", "IEEET1"])
 def test_against_andes(name):
     """Driven by ANDES's recorded terminal quantities through a line trip and
     reclosure on IEEE 14 (generator 6's ESST3A with TA = 0, generator 8 an
-    ESDC2A): Vref is ANDES's to 1e-9 and the field voltage follows ANDES's to 1e-3
-    of its swing (0.04 pu ESST3A, 0.08 pu ESDC2A). The machines' d/q phasors go in
-    as they are (a rotation changes no magnitude the models use)."""
+    ESDC2A), and a line trip on Kundur (generator 4 an IEEET1, saturated): Vref is
+    ANDES's to 1e-9 and the field voltage follows ANDES's to 1e-3 of its swing
+    (0.04 pu ESST3A, 0.08 pu ESDC2A, 0.34 pu IEEET1). The machines' d/q phasors
+    go in as they are (a rotation changes no magnitude the models use; the DC
+    exciters read none of them)."""
     rec, efd, vref = _andes(name)
     assert vref == pytest.approx(rec["vref0"], rel=1e-9)
     want = np.asarray(rec["Efd"])

@@ -858,6 +858,8 @@ def test_dyr_order_against_andes_yaml():
         "ESDC2A",
         "SCRX",  # ANDES reads it into its SEXS
         "IEEEVC",
+        "ESDC1A",
+        "IEEET1",
         # governors and stabilizers of issue 45
         "IEEEG1",
         "HYGOV",
@@ -870,6 +872,7 @@ def test_dyr_order_against_andes_yaml():
         "Tdo_p": "Td10", "Tdo_pp": "Td20", "Tqo_p": "Tq10", "Tqo_pp": "Tq20",
         "Xd_p": "Xd1", "Xq_p": "Xq1", "Xd_pp": "Xd2", "TA_TB": "TATB",
         "SWITCH": "Switch", "ICS": "MODE", "IB": "BUSR",
+        "RC": "rc", "XC": "xc", "rc_rfd": "rcrfd",
     }  # fmt: skip
     for m in both:
         theirs = table[m]["inputs"][2:]  # after BUS, ID

@@ -46,7 +46,7 @@ MACHINES += ("GENROE", "GENSAL", "GENSAE")  # issue 45
 EXCITERS = ("SEXS", "IEEEX1", "EXDC2", "EXST1", "SYNEX")
 # issue 45: more PSS/E exciters, and the load compensator IEEEVC (it writes the
 # voltage the exciter regulates; grouped here as part of the excitation system)
-EXCITERS += ("ESST3A", "ESDC2A", "SCRX", "IEEET2", "IEEEVC")
+EXCITERS += ("ESST3A", "ESDC2A", "SCRX", "IEEET2", "IEEEVC", "ESDC1A", "IEEET1")
 STABILIZERS = ("IEEEST", "STAB1")
 GOVERNORS = ("TGOV1",)
 # governors and stabilizers of issue 45
@@ -124,6 +124,28 @@ def _model_class(model: str):
     return getattr(devices, model)
 
 
+# issue 45 (exciters): a refused controller record named by its file and line
+def _located(cls, entries):
+    """The controller group `cls` from its (generator position, dyr record)
+    entries. A refused parameter (`ParameterError`, one line naming the model, the
+    parameter and what is allowed) is raised again prefixed with the file and line
+    of the first record that is refused on its own."""
+    from .._validate import ParameterError
+
+    def build(ents):
+        return cls.from_params([g for g, _ in ents], [r.params for _, r in ents])
+
+    try:
+        return build(entries)
+    except ParameterError:
+        for g, r in entries:
+            try:
+                build([(g, r)])
+            except ParameterError as one:
+                raise ParameterError(f"{r.file}:{r.line}: {one}") from None
+        raise
+
+
 def build_case(system, records, name: str = "") -> Case:
     """A `Case` from a `System` and dyr records (`psse.read_dyr`)."""
     keys = _gen_key_index(system)
@@ -187,10 +209,7 @@ def build_case(system, records, name: str = "") -> Case:
                     f"{r.file}:{r.line}: {model} for generator {r.ident!r} at bus "
                     f"{r.bus} has no machine record"
                 )
-        pos = [g for g, _ in entries]
-        controllers.append(
-            _model_class(model).from_params(pos, [r.params for _, r in entries])
-        )
+        controllers.append(_located(_model_class(model), entries))
     unknown = sorted(set(by_model) - set(SUPPORTED))
     if unknown:
         raise CaseError(

@@ -1078,6 +1078,23 @@ DYR_MODELS: dict[str, tuple[str, ...]] = {
         "SE2",
     ),
     "IEEEVC": ("RC", "XC"),
+    "ESDC1A": _DC_EXCITER,
+    "IEEET1": (
+        "TR",
+        "KA",
+        "TA",
+        "VRMAX",
+        "VRMIN",
+        "KE",
+        "TE",
+        "KF",
+        "TF",
+        "SWITCH",
+        "E1",
+        "SE1",
+        "E2",
+        "SE2",
+    ),
     # --- end of the issue-45 exciters
     # smibjax-specific, not a PSS/E model: the paper's synergetic excitation law on
     # a local SMIB equivalent (devices/synex.py)
@@ -1264,6 +1281,8 @@ DYR_KINDS: dict[str, str] = {
     "SCRX": "exciter",
     "IEEET2": "exciter",
     "IEEEVC": "compensator",  # in front of the exciter: changes what it regulates
+    "ESDC1A": "exciter",
+    "IEEET1": "exciter",
     # --- end of the issue-45 exciters
     # governors and stabilizers of issue 45
     "IEEEG1": "governor",

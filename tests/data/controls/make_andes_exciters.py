@@ -8,6 +8,8 @@ error, so TR = 0 makes the two the same model). Both machines are on a 100 MVA
 base, the system's: ANDES hands its ESST3A the terminal current on the system
 base, smibjax on the machine base (PSS/E), the same numbers here. (Not on Kundur:
 on its 900 MVA machines ANDES 2.0's ESST3A fails its own initialization check.
+A second run on Kundur, its own event (line Line_8 tripped at t = 2 s), gives
+generator 4 an IEEET1 in place of its EXDC2: record "kundur".
 No IEEEVC: ANDES 2.0 fails to initialize an exciter behind one, its own
 ieee14_ieeevc case included; smibjax's IEEEVC is checked against its closed form.)
 
@@ -58,6 +60,29 @@ ESDC2A = dict(
 )
 
 
+# Kundur (a second run): generator 4's EXDC2 becomes an IEEET1 (the EXDC2's data
+# without its lead-lag). (No ESDC1A: ANDES 2.0's ESDC1A raises a TypeError in its
+# own initialization, in do_adjust_upper; smibjax's IEEET1 runs through its ESDC1A.)
+KUNDUR = Path(andes.get_case("kundur/kundur.raw")).parent
+T_END_K, T_TRIP_K = 6.0, 2.0  # s; the case's Toggle of Line_8
+IEEET1 = dict(
+    TR=0.02,
+    KA=20.0,
+    TA=0.02,
+    VRMAX=5.2,
+    VRMIN=-4.16,
+    KE=1.0,
+    TE=0.83,
+    KF=0.0754,
+    TF=1.246,
+    SWITCH=0.0,
+    E1=1.5,
+    SE1=0.03,
+    E2=2.5,
+    SE2=0.2,
+)
+
+
 def _record(bus, model, cons):
     return f"{bus} '{model}' 1 " + " ".join(f"{c:.10g}" for c in cons) + " /\n"
 
@@ -71,12 +96,19 @@ def dyr_text() -> str:
     return text.rstrip() + "\n" + _record(8, "ESDC2A", list(ESDC2A.values()))
 
 
-def main() -> None:
+def kundur_dyr_text() -> str:
+    text = (KUNDUR / "kundur_full.dyr").read_text()
+    text, n = re.subn(r"\s*4 'EXDC2 ' 1[^/]*/", "\n", text, count=1)
+    assert n == 1  # generator 4's EXDC2 out, an IEEET1 in
+    return text.rstrip() + "\n" + _record(4, "IEEET1", list(IEEET1.values()))
+
+
+def _run(raw, dyr_text, t_end):
     with tempfile.TemporaryDirectory() as tmp:
-        dyr = Path(tmp) / "ieee14_exc.dyr"
-        dyr.write_text(dyr_text())
+        dyr = Path(tmp) / "exc.dyr"
+        dyr.write_text(dyr_text)
         ss = andes.load(
-            str(CASES / "ieee14.raw"),
+            str(raw),
             addfile=str(dyr),
             setup=False,
             no_output=True,
@@ -84,17 +116,24 @@ def main() -> None:
         )
         ss.setup()
         ss.PFlow.run()
-        ss.TDS.config.tf = T_END
+        ss.TDS.config.tf = t_end
         ss.TDS.config.tstep = STEP
         ss.TDS.config.fixt = 1
         ss.TDS.config.shrinkt = 0
         ss.TDS.config.no_tqdm = 1
         ss.TDS.run()
+    assert ss.TDS.initialized
+    return ss
+
+
+def _sampler(ss, t_trip):
+    """(t, y): the kept sample times and a function of a variable (and a device
+    index) giving its samples."""
     ts = ss.dae.ts
     t = np.asarray(ts.t)
     # every 5th step, and every step over the 0.3 s after the trip (the inputs
     # move fastest there; the test interpolates them linearly between samples)
-    dense = (t >= T_TRIP - 0.01) & (t <= T_TRIP + 0.3)
+    dense = (t >= t_trip - 0.01) & (t <= t_trip + 0.3)
     keep = np.unique(
         np.r_[np.arange(0, t.size, EVERY), np.flatnonzero(dense), t.size - 1]
     )
@@ -105,6 +144,12 @@ def main() -> None:
         arr = ts.x if var.v_code == "x" else ts.y
         return rnd(np.asarray(arr[:, var.a[i]])[keep])
 
+    return rnd(t[keep]), y
+
+
+def main() -> None:
+    ss = _run(CASES / "ieee14.raw", dyr_text(), T_END)
+    t, y = _sampler(ss, T_TRIP)
     gen_of = {g: k for k, g in enumerate(ss.GENROU.idx.v)}
     bus_of = dict(zip(ss.GENROU.idx.v, ss.GENROU.bus.v, strict=True))
     e3 = list(ss.ESST3A.syn.v).index(
@@ -114,7 +159,7 @@ def main() -> None:
     g2 = gen_of[ss.ESDC2A.syn.v[0]]
     assert float(ss.GENROU.Sn.v[g1]) == float(ss.GENROU.Sn.v[g2]) == ss.config.mva
 
-    def machine(g):
+    def machine(g, ss=ss, y=y):
         m = ss.GENROU
         return {
             "Vt": y(m.v, g),
@@ -132,7 +177,7 @@ def main() -> None:
         "tripped at t = 1.0 s, reclosed at 1.1 s; fixed step 2 ms, samples every 10 "
         "ms (2 ms from 0.99 s to 1.3 s); made by tests/data/controls/make_andes_exciters.py",
         "t_events": [1.0, 1.1],
-        "t": rnd(t[keep]),
+        "t": t,
         "ESST3A": {
             "params": {
                 k: float(getattr(ss.ESST3A, k).v[e3])
@@ -149,10 +194,28 @@ def main() -> None:
             "params": ESDC2A,
             **machine(g2),
             "Efd": y(ss.ESDC2A.vout),
-            "VR": y(ss.ESDC2A.LA_y),
             "vref0": float(ss.ESDC2A.vref0.v[0]),
         },
     }
+    ssk = _run(KUNDUR / "kundur.raw", kundur_dyr_text(), T_END_K)
+    tk, yk = _sampler(ssk, T_TRIP_K)
+    genk = {g: k for k, g in enumerate(ssk.GENROU.idx.v)}
+    out["kundur"] = {
+        "source": "ANDES " + andes.__version__ + ", andes/cases/kundur (kundur.raw, "
+        "kundur_full.dyr with generator 4's EXDC2 an IEEET1), line Line_8 tripped "
+        "at t = 2 s; fixed step 2 ms, samples every 10 ms (2 ms from 1.99 s to 2.3 s)",
+        "t_events": [T_TRIP_K],
+        "t": tk,
+    }
+    for name, data in (("IEEET1", IEEET1),):
+        model = getattr(ssk, name)
+        g = genk[model.syn.v[0]]
+        out["kundur"][name] = {
+            "params": data,
+            "Vt": yk(ssk.GENROU.v, g),
+            "Efd": yk(model.vout),
+            "vref0": float(model.vref0.v[0]),
+        }
     (HERE / "andes_exciters.json").write_text(json.dumps(out, indent=0) + "\n")
 
 

@@ -21,6 +21,7 @@ from .tgov1 import TGOV1 as TGOV1
 
 # isort: split
 # issue 45: exciters and the load compensator
+from .esdc2a import ESDC1A as ESDC1A
 from .esdc2a import ESDC2A as ESDC2A
 from .esst3a import ESST3A as ESST3A
 
@@ -28,6 +29,7 @@ from .esst3a import ESST3A as ESST3A
 from .gast import GAST as GAST
 from .hygov import HYGOV as HYGOV
 from .ieeeg1 import IEEEG1 as IEEEG1
+from .ieeet1 import IEEET1 as IEEET1
 from .ieeet2 import IEEET2 as IEEET2
 from .ieeevc import IEEEVC as IEEEVC
 from .ieesgo import IEESGO as IEESGO

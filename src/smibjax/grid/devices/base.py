@@ -18,8 +18,12 @@ terminal bus: they inject I = i_norton(x) and add y to the bus's self-admittance
 Controllers (`AbstractController`) read measurements by name and write one command by
 name: an exciter reads "Vt" (and "Vs", the stabilizer's output) and writes "Efd"; a
 stabilizer reads "omega" or "Pe" and writes "Vs"; a governor reads "omega" and writes
-"Pm". The closed loop gathers each controller's inputs at its devices' positions and
-scatters its output back, so nothing indexes another model's states.
+"Pm". The closed loop adds, for every machine model, the terminal voltage and current
+phasors "Vt_re", "Vt_im", "It_re", "It_im" (current out of the terminal, machine
+base; `loop.terminal_phasors`), and "Vc", the voltage an exciter regulates: a load
+compensator's output (IEEEVC writes "Vc"), else Vt. The closed loop gathers each
+controller's inputs at its devices' positions and scatters its output back, so
+nothing indexes another model's states.
 """
 
 from __future__ import annotations

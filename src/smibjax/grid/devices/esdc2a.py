@@ -1,4 +1,6 @@
-"""ESDC2A: the IEEE 421.5-2005 type DC2A DC commutator exciter with a bus-fed
+"""ESDC2A and ESDC1A: the IEEE 421.5-2005 types DC2A and DC1A DC commutator
+exciters (ESDC1A: constant regulator limits [VRMIN, VRMAX], IEEEX1's diagram; PSS/E
+`ESDC1A`, the same CONs). ESDC2A has a bus-fed
 regulator (PSS/E `ESDC2A`, CONs TR, KA, TA, TB, TC, VRMAX, VRMIN, KE, TE, KF, TF1,
 Switch, E1, SE(E1), E2, SE(E2); ANDES `ESDC2A`).
 
@@ -34,7 +36,7 @@ import jax.numpy as jnp
 from ..psse import DYR_MODELS
 from .ieeex1 import _DCExciter
 
-__all__ = ["ESDC2A", "dc_constants"]
+__all__ = ["ESDC2A", "ESDC1A", "dc_constants"]
 
 
 def dc_constants(VRMAX, VRMIN, KE, E2, SE2, efd0, se0):
@@ -55,6 +57,21 @@ class ESDC2A(_DCExciter):
 
     con_names = DYR_MODELS["ESDC2A"]
     vt_limits: ClassVar[bool] = True
+    ref_limits: ClassVar[bool] = True
+
+    def _constants(self, y0):
+        return dc_constants(
+            self.VRMAX, self.VRMIN, self.KE, self.E2, self.SE2, y0, self.se(y0)
+        )
+
+
+class ESDC1A(_DCExciter):
+    """PSS/E ESDC1A (IEEE 421.5 DC1A): IEEEX1's diagram (constant regulator limits
+    [VRMIN, VRMAX], non-windup) with PSS/E's DC-exciter initialization (KE = 0,
+    VRMAX = 0 computed at rest, `dc_constants`)."""
+
+    con_names = DYR_MODELS["ESDC1A"]
+    vt_limits: ClassVar[bool] = False
     ref_limits: ClassVar[bool] = True
 
     def _constants(self, y0):
