@@ -42,7 +42,7 @@ CASES = {  # name: (raw, dyr, fault bus number)
     "ieee39": ("builtin:ieee39-gencls", None, 16),
     "npcc": ("andes:npcc/npcc.raw", "andes:npcc/npcc_full.dyr", 2),
     "wecc": ("andes:wecc/wecc.raw", "andes:wecc/wecc_gencls.dyr", 2),
-    "gb": ("andes:GBnetwork/GBnetwork.xlsx", None, 2),
+    "gb": ("andes:GBnetwork/GBnetwork.xlsx", None, 100),
 }
 
 

@@ -237,4 +237,3 @@ def _power_flow_sparse(system, flat, tol, max_iter) -> PowerFlowResult:
         iterations=steps,
         converged=done & (jnp.abs(mismatch) <= tol),
     )
-
