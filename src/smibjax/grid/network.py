@@ -464,6 +464,13 @@ def stage_matrices(grid: Grid, cfgs: StageConfig, events=()) -> StageMatrices:
     nodes, branches, segments = _slots(grid, events)
     K = nodes.shape[0]
     n_stage = cfgs.gen_status.shape[0]
+    if n_stage != 1 + sum(
+        2 if isinstance(e, BusFault | LineFault) else 1 for e in events
+    ):
+        raise ValueError(
+            f"stage_matrices: {n_stage} stages for {len(events)} events; pass the "
+            "events that made the stage configurations"
+        )
     if K == 0:
         X = jnp.zeros((N, 0), dtype=jnp.complex128)
         Q = jnp.zeros((n_stage, 0, p + 1), dtype=jnp.complex128)
