@@ -183,7 +183,7 @@ def jvp_cost(repeat: int = 2000) -> dict:
             bus=case.system.bus_index(BUS), t_on=T_FAULT, t_off=T_CLEAR, r=0.0, x=XF
         ),
     )
-    mats = stage_matrices(op.grid, stage_configs(op.grid, ev))
+    mats = stage_matrices(op.grid, stage_configs(op.grid, ev), ev)
     y = op.y0 + 1e-3 * np.sin(np.arange(op.y0.size))
 
     @jax.jit

@@ -554,9 +554,12 @@ def test_vmap_over_branch_outages_equals_the_loop(solved):
 # ---- (f) non-convergence ----
 
 
-def test_beyond_the_nose_the_error_names_the_worst_bus():
+@pytest.mark.parametrize("method", ["sparse", "dense"])
+def test_beyond_the_nose_the_error_names_the_worst_bus(method):
+    from smibjax.grid.powerflow_sparse import power_flow_sparse
+
     system = scale_operating_point(wscc9(), 50.0, 1.0)
-    core = power_flow(system)
+    core = (power_flow_sparse if method == "sparse" else power_flow)(system)
     assert not bool(core.converged)
     dp, dq = _mismatch_np(system, core.vm, core.va)
     worst = int(np.argmax(np.abs(np.concatenate([dp, dq]))))
@@ -564,11 +567,12 @@ def test_beyond_the_nose_the_error_names_the_worst_bus():
     m = np.concatenate([dp, dq])[worst]
     what, unit = ("Q", "Mvar") if worst >= 9 else ("P", "MW")
     with pytest.raises(PowerFlowError) as err:
-        solve_power_flow(system)
+        solve_power_flow(system, method=method)
     msg = str(err.value)
     assert "\n" not in msg
     assert msg == (
-        f"power flow did not converge in 30 iterations: largest mismatch {what} = "
+        f"power flow did not converge in {int(core.iterations)} iterations: "
+        f"largest mismatch {what} = "
         f"{m:.4g} pu ({100 * m:.4g} {unit}) at bus {bus}"
     )
 

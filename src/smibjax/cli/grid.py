@@ -397,6 +397,48 @@ def _event_text(case, ev) -> str:
     return "; ".join(out)
 
 
+# ---- the memory plan of grid runs (issue 46) ----
+
+
+def _plan(case, events, args):
+    from ..grid.events import LineFault
+    from ..grid.memory import run_size
+
+    samples = args.t_end / args.dt_save + 1
+    n_lf = sum(isinstance(e, LineFault) for e in events)
+    return run_size(case, samples, len(events), n_lf), samples
+
+
+def _require_run_fits(case, events, args) -> None:
+    """CLIError (one line) unless one run fits the memory available."""
+    from .._validate import ParameterError
+    from ..grid.memory import require_fit
+
+    size, samples = _plan(case, events, args)
+    try:
+        require_fit(
+            f"--t-end {args.t_end:g} with --dt-save {args.dt_save:g} ({samples:.4g} "
+            f"samples of {case.system.n_bus} buses)",
+            size,
+            1,
+            "shorten --t-end or raise --dt-save",
+        )
+    except ParameterError as e:
+        raise CLIError(str(e)) from None
+
+
+def _chunk_that_fits(case, events, args, chunk: int) -> int:
+    """`chunk`, lowered to the largest batch that fits the memory available;
+    CLIError (one line) if not even one run fits."""
+    from ..grid.memory import chunk_that_fits
+
+    size, _ = _plan(case, events, args)
+    fit = chunk_that_fits(size, chunk)
+    if fit < 1:
+        _require_run_fits(case, events, args)
+    return fit
+
+
 def run_simulate(args) -> int:
     """`simulate --case`: one run; summary, the trajectory (per-generator and per-bus
     arrays with their PSS/E ids) in the format of the --out suffix, the plot."""
@@ -417,6 +459,7 @@ def run_simulate(args) -> int:
         plot = check_new_file(check_plot_path(args.plot), args.force, "--plot")
     case, op, pf = load(args)
     ev = events_from_args(case, args)
+    _require_run_fits(case, ev, args)
     print(_describe(case, pf), file=sys.stderr)
     print(f"events: {_event_text(case, ev)}", file=sys.stderr)
     say_phase(f"the simulation of {_size(case)}", "jit_simulate_jit", compile_s(case))
@@ -576,10 +619,10 @@ def _grid_distribution(case, args):
         n, chunk = int(args.n), int(min(args.chunk, args.n, GRID_CHUNK))
         if n < 1 or chunk < 1:
             raise CLIError(f"--n {args.n} and --chunk {args.chunk} must be >= 1")
-        sample_events(case.system, dist, 1, args.seed)  # checks buses and lines
+        one = sample_events(case.system, dist, 1, args.seed)  # checks buses, lines
     except ValueError as e:
         raise CLIError(str(e)) from None
-    return dist, n, chunk
+    return dist, n, _chunk_that_fits(case, one, args, chunk)
 
 
 def grid_rows(case, op, dist, n, chunk, args, desc="scenarios"):

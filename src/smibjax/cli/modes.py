@@ -96,6 +96,12 @@ def parse_sweep(text: str) -> tuple[str, np.ndarray]:
         raise CLIError(
             f"--sweep {text!r} is not allowed: the range is empty or reversed"
         )
+    from .._validate import ParameterError, require_memory
+
+    try:  # the values and each mode's track: refused before anything is allocated
+        require_memory(f"--sweep {text!r}", 1, n, "fewer values (n)")
+    except ParameterError as e:
+        raise CLIError(str(e)) from None
     return name.strip(), np.linspace(lo, hi, n)
 
 

@@ -281,7 +281,7 @@ def state_labels(case: Case) -> tuple[tuple[str, str, str], ...]:
 
 def evaluate(case: Case, op: Operating, mats: StageMatrices, stage, y, u=None):
     """(dy/dt, measurements over all generators, net port currents) in stage
-    `stage`; the bus voltages are then Z[stage] i + c_all[stage]. `u`: optional
+    `stage`; the bus voltages are then `mats.bus_voltages(stage, i)`. `u`: optional
     additive inputs by name over all generators: "Efd" and "Pm" (added to the
     machines' commands), "Vs" (added to the stabilizer signal the exciters read),
     "Efd_cmd" (the external command a DirectField exciter reads; 0 without it);

@@ -35,6 +35,7 @@ __all__ = [
     "StageMatrices",
     "stage_configs",
     "stage_matrices",
+    "stage_matrices_dense",
     "solve_ports",
 ]
 
@@ -69,14 +70,43 @@ class StageConfig(eqx.Module):
 
 
 class StageMatrices(eqx.Module):
-    """Per stage (leading axis): A (ports x ports), c (ports), Z (buses x ports),
-    c_all (buses), generator status."""
+    """Per stage (leading axis s): A (ports x ports) and c (ports), the port
+    voltages V_ports = A I + c; generator status; and the bus voltages in low-rank
+    form, V_bus = Zb (mask * I) + cb + U (Q[:, :p] I + Q[:, p]) (`bus_voltages`):
+    Zb (buses x ports) the base network's response to the port currents (shared by
+    every stage), mask the ports not held by a bolted fault, U (buses x K) the base
+    response to the K nodes the events touch, Q (K x (ports + 1)) per stage."""
 
     A: Complex[Array, "s p p"]
     c: Complex[Array, "s p"]
-    Z: Complex[Array, "s n p"]
-    c_all: Complex[Array, "s n"]
     gen_status: Float[Array, "s n_gen"]
+    Zb: Complex[Array, "n p"]
+    mask: Float[Array, "s p"]
+    cb: Complex[Array, "s n"]
+    U: Complex[Array, "n k"]
+    Q: Complex[Array, "s k p1"]
+
+    def bus_voltages(
+        self, stage: int, i_ports: Complex[Array, "*b p"]
+    ) -> Complex[Array, "*b n"]:
+        """Bus voltages (pu) in stage `stage` (a Python int) for port currents
+        `i_ports` (pu, any leading axes): no (buses x ports) matrix per sample."""
+        p = self.Zb.shape[1]
+        q = self.Q[stage]
+        v = (i_ports * self.mask[stage]) @ self.Zb.T + self.cb[stage]
+        return v + (i_ports @ q[:, :p].T + q[:, p]) @ self.U.T
+
+    @property
+    def Z(self) -> Complex[Array, "s n p"]:
+        """The dense per-stage bus response (buses x ports); for checks only."""
+        p = self.Zb.shape[1]
+        low = jnp.einsum("nk,skp->snp", self.U, self.Q[..., :p])
+        return self.Zb[None] * self.mask[:, None, :] + low
+
+    @property
+    def c_all(self) -> Complex[Array, "s n"]:
+        """The per-stage bus voltages at zero port current (pu)."""
+        return self.cb + jnp.einsum("nk,sk->sn", self.U, self.Q[..., -1])
 
 
 def _fault_y(r, x):
@@ -233,6 +263,8 @@ def admittance(grid: Grid, cfg: StageConfig) -> Complex[Array, "N N"]:
 
 
 def _one_stage(grid: Grid, cfg: StageConfig):
+    """One stage reduced densely (the reference path): the full nodal matrix with its
+    held rows, solved for every port and the fixed voltages."""
     n = grid.system.n_bus
     Y = admittance(grid, cfg)
     N = Y.shape[0]
@@ -259,10 +291,228 @@ def _one_stage(grid: Grid, cfg: StageConfig):
     return Zp[ports], cp[ports], Zp[:n], cp[:n]
 
 
-def stage_matrices(grid: Grid, cfgs: StageConfig) -> StageMatrices:
-    """Factor and reduce every stage's network (vmapped over the stage axis)."""
-    A, c, Z, c_all = jax.vmap(lambda cfg: _one_stage(grid, cfg))(cfgs)
-    return StageMatrices(A=A, c=c, Z=Z, c_all=c_all, gen_status=cfgs.gen_status)
+def stage_matrices_dense(grid: Grid, cfgs: StageConfig):
+    """(A, c, Z, c_all) of every stage by a dense reduction of the whole network per
+    stage (vmapped over the stage axis): the reference `stage_matrices` is checked
+    against."""
+    return jax.vmap(lambda cfg: _one_stage(grid, cfg))(cfgs)
+
+
+# ---- the base network factored once, stages as low-rank updates (issue 46) ----
+
+
+def _base_config(grid: Grid, n_lf: int) -> StageConfig:
+    """The pre-event network with `n_lf` isolated spare nodes (no event data, so
+    it stays unbatched under vmap over scenarios)."""
+    sys_ = grid.system
+    N = sys_.n_bus + n_lf
+    return StageConfig(
+        branch_status=jnp.asarray(sys_.branches.status, dtype=jnp.float64),
+        fault_y=jnp.zeros(N, dtype=jnp.complex128),
+        bolted=jnp.zeros(N, dtype=bool),
+        seg_on=jnp.zeros(n_lf),
+        seg_branch=jnp.zeros(n_lf, dtype=jnp.int32),
+        seg_frac=jnp.full(n_lf, 0.5),
+        gen_status=jnp.asarray(sys_.generators.status, dtype=jnp.float64),
+    )
+
+
+def _diagonal(grid: Grid, cfg: StageConfig):
+    """The diagonal admittances of a stage's nodes (loads, shunts, machines in
+    service, fault shunts, the spare nodes' isolation 1 when no fault is on)."""
+    sys_ = grid.system
+    n = sys_.n_bus
+    n_lf = cfg.seg_on.shape[0]
+    N = n + n_lf
+    diag = jnp.zeros(N, dtype=jnp.complex128).at[:n].add(grid.bus_y) + cfg.fault_y
+    gen_bus = jnp.asarray(sys_.generators.bus)
+    diag = diag.at[gen_bus].add(grid.gen_y * cfg.gen_status)
+    return diag.at[n:].add(1.0 - cfg.seg_on)
+
+
+def _main_status(cfg: StageConfig):
+    """Branch statuses with the branches split by a line fault taken out."""
+    if cfg.seg_on.shape[0] == 0:
+        return cfg.branch_status
+    cut = jnp.zeros_like(cfg.branch_status).at[cfg.seg_branch].add(cfg.seg_on)
+    return cfg.branch_status * (1 - jnp.minimum(cut, 1.0))
+
+
+def _two_port(r, x, b, tap, shift):
+    """A branch's 2x2 admittance block [[ff, ft], [tf, tt]] (see `_stamp`)."""
+    y = 1.0 / (r + 1j * x)
+    a = tap * jnp.exp(1j * shift)
+    ysh = 1j * b / 2
+    return jnp.array(
+        [[(y + ysh) / tap**2, -y / jnp.conj(a)], [-y / a, y + ysh]],
+        dtype=jnp.complex128,
+    )
+
+
+def _slots(grid: Grid, events):
+    """The nodes an event sequence touches, one slot each (a node may hold several
+    slots): (nodes (K,), branch blocks [(branch, slot_fr, slot_to)], segment blocks
+    [(line-fault k, slot_fr, slot_node, slot_to)])."""
+    sys_ = grid.system
+    n = sys_.n_bus
+    fr = jnp.asarray(sys_.branches.fr)
+    to = jnp.asarray(sys_.branches.to)
+    gbus = jnp.asarray(sys_.generators.bus)
+    nodes, branches, segments = [], [], []
+    lf = 0
+    for e in events:
+        k = len(nodes)
+        if isinstance(e, BusFault):
+            nodes.append(jnp.asarray(e.bus))
+        elif isinstance(e, LineFault):
+            nodes += [fr[e.branch], to[e.branch], jnp.asarray(n + lf)]
+            branches.append((e.branch, k, k + 1))
+            segments.append((lf, k, k + 1, k + 2))
+            lf += 1
+        elif isinstance(e, BranchTrip | BranchClose):
+            nodes += [fr[e.branch], to[e.branch]]
+            branches.append((e.branch, k, k + 1))
+        elif isinstance(e, GenTrip):
+            nodes.append(gbus[e.gen])
+        else:
+            raise TypeError(f"not an event: {e!r}")
+    nodes = (
+        jnp.stack([jnp.asarray(v, dtype=jnp.int32) for v in nodes])
+        if nodes
+        else (jnp.zeros(0, dtype=jnp.int32))
+    )
+    return nodes, branches, segments
+
+
+def _first(keys):
+    """Whether each entry is the first of its value (K,) -> (K,) bool."""
+    k = keys.shape[0]
+    same = (keys[:, None] == keys[None, :]) & (
+        jnp.arange(k)[None, :] < jnp.arange(k)[:, None]
+    )
+    return ~jnp.any(same, axis=1)
+
+
+def _update(grid, cfg, base, nodes, branches, segments, first_node):
+    """The stage's admittance change on the slots, D (K, K): ΔY = E D E^T with E the
+    slots' unit vectors (duplicate nodes allowed)."""
+    br = grid.system.branches
+    r, x, bb = jnp.asarray(br.r), jnp.asarray(br.x), jnp.asarray(br.b)
+    tap, shift = jnp.asarray(br.tap), jnp.asarray(br.shift)
+    D = jnp.diag(
+        jnp.where(first_node, (_diagonal(grid, cfg) - _diagonal(grid, base))[nodes], 0)
+    )
+    st, st0 = _main_status(cfg), _main_status(base)
+    if branches:
+        idx = jnp.stack([jnp.asarray(b, dtype=jnp.int32) for b, _, _ in branches])
+        first_br = _first(idx)
+        for m, (b, i, j) in enumerate(branches):
+            blk = _two_port(r[b], x[b], bb[b], tap[b], shift[b])
+            w = jnp.where(first_br[m], st[b] - st0[b], 0.0)
+            sl = jnp.array([i, j])
+            D = D.at[sl[:, None], sl[None, :]].add(w * blk)
+    for k, i, j, m in segments:  # slots: from bus, to bus, fault node
+        b = cfg.seg_branch[k]
+        lam = cfg.seg_frac[k]
+        on = cfg.seg_on[k] * cfg.branch_status[b]
+        one = _two_port(r[b] * lam, x[b] * lam, bb[b] * lam, tap[b], shift[b])
+        two = _two_port(r[b] * (1 - lam), x[b] * (1 - lam), bb[b] * (1 - lam), 1.0, 0.0)
+        a = jnp.array([i, m])
+        c = jnp.array([m, j])
+        D = D.at[a[:, None], a[None, :]].add(on * one)
+        D = D.at[c[:, None], c[None, :]].add(on * two)
+    return D
+
+
+def stage_matrices(grid: Grid, cfgs: StageConfig, events=()) -> StageMatrices:
+    """Every stage's reduced network, from one factorization of the base (pre-event)
+    network: the events' changes (fault shunts, branch trips and closes, the split
+    branch of a line fault, generator trips) are exact low-rank (Woodbury) updates on
+    the K nodes the events touch, and bolted faults hold their node at V = 0 by a
+    Schur complement on those nodes. `cfgs` are `stage_configs(grid, events)`.
+
+    With Z0 = M0^-1 (M0: the base admittance, fixed-voltage rows held), X = Z0 E
+    (E: the touched nodes' unit vectors, N x K) and R0 the base responses to the port
+    injections and fixed voltages, each stage's responses are R0 + X Q[stage]:
+    Q = -G + (1 - H) mu with G = S^-1 D R0_T, H = S^-1 D X_T, S = 1 + D X_T and mu
+    the bolted nodes' currents. Cost per scenario: K solves with the base factors
+    and K x K systems per stage (not a factorization per stage). Jittable,
+    vmappable (the base factorization is shared by a batch) and differentiable."""
+    sys_ = grid.system
+    n = sys_.n_bus
+    n_lf = cfgs.seg_on.shape[-1]
+    N = n + n_lf
+    base = _base_config(grid, n_lf)
+    Y0 = admittance(grid, base)
+    dirichlet = jnp.asarray(grid.dirichlet, dtype=jnp.int32)
+    fixed = jnp.zeros(N, dtype=bool).at[dirichlet].set(True)
+    M0 = jnp.where(fixed[:, None], jnp.eye(N, dtype=jnp.complex128), Y0)
+    lu = jax.scipy.linalg.lu_factor(M0)
+    ports = jnp.asarray(grid.ports, dtype=jnp.int32)
+    p = ports.shape[0]
+    n_dir = dirichlet.shape[0]
+    E = jnp.zeros((N, p + n_dir), dtype=jnp.complex128)
+    E = E.at[ports, jnp.arange(p)].set(1.0)
+    E = jnp.where(fixed[:, None], 0.0, E)
+    E = E.at[dirichlet, p + jnp.arange(n_dir)].set(1.0)
+    W = jax.scipy.linalg.lu_solve(lu, E)  # (N, p + n_dir)
+    Wp, Wd = W[:, :p], W[:, p:]
+    bolted_port = cfgs.bolted[:, ports]  # (s, p)
+    mask = jnp.where(bolted_port, 0.0, 1.0)
+    src = jnp.where(cfgs.bolted[:, dirichlet], 0.0, grid.v_dirichlet)  # (s, n_dir)
+    cN = src @ Wd.T  # (s, N)
+    nodes, branches, segments = _slots(grid, events)
+    K = nodes.shape[0]
+    n_stage = cfgs.gen_status.shape[0]
+    if n_stage != 1 + sum(
+        2 if isinstance(e, BusFault | LineFault) else 1 for e in events
+    ):
+        raise ValueError(
+            f"stage_matrices: {n_stage} stages for {len(events)} events; pass the "
+            "events that made the stage configurations"
+        )
+    if K == 0:
+        X = jnp.zeros((N, 0), dtype=jnp.complex128)
+        Q = jnp.zeros((n_stage, 0, p + 1), dtype=jnp.complex128)
+    else:
+        ET = jnp.zeros((N, K), dtype=jnp.complex128).at[nodes, jnp.arange(K)].set(1.0)
+        X = jax.scipy.linalg.lu_solve(lu, ET)  # (N, K)
+        XT = X[nodes]
+        first_node = _first(nodes)
+        held_row = fixed[nodes]
+        eye = jnp.eye(K, dtype=jnp.complex128)
+
+        def per_stage(cfg, m, c):
+            D = _update(grid, cfg, base, nodes, branches, segments, first_node)
+            D = jnp.where(held_row[:, None], 0.0, D)
+            R0T = jnp.concatenate([Wp[nodes] * m[None, :], c[nodes][:, None]], axis=1)
+            S = eye + D @ XT
+            G = jnp.linalg.solve(S, D @ R0T)
+            H = jnp.linalg.solve(S, D @ XT)
+            b = cfg.bolted[nodes] & first_node
+            Z1R_T = R0T - XT @ G
+            Z1T_TT = XT @ (eye - H)
+            both = b[:, None] & b[None, :]
+            Gm = jnp.where(both, Z1T_TT, eye)
+            mu = -jnp.linalg.solve(Gm, jnp.where(b[:, None], Z1R_T, 0.0))
+            mu = jnp.where(b[:, None], mu, 0.0)
+            return -G + (eye - H) @ mu
+
+        Q = jax.vmap(per_stage)(cfgs, mask, cN)
+    A = Wp[ports][None] * mask[:, None, :] + jnp.einsum(
+        "ik,skj->sij", X[ports], Q[..., :p]
+    )
+    c = cN[:, ports] + jnp.einsum("ik,sk->si", X[ports], Q[..., p])
+    return StageMatrices(
+        A=A,
+        c=c,
+        gen_status=cfgs.gen_status,
+        Zb=Wp[:n],
+        mask=mask,
+        cb=cN[:, :n],
+        U=X[:n],
+        Q=Q,
+    )
 
 
 def solve_ports(

@@ -300,6 +300,7 @@ def solve_power_flow(
     start: Start = "case",
     tol: float = 1e-10,
     max_iter: int = 30,
+    method: Literal["sparse", "dense"] = "sparse",
 ) -> PowerFlowResult:
     """`power_flow` on the host (one compile per case shape): checks the data
     and raises `PowerFlowError` with one line naming the largest mismatch (pu, MW or
@@ -309,12 +310,21 @@ def solve_power_flow(
     a low-voltage solution (some |V| below LOW_V = 0.5 pu: an unsolved raw file's
     voltages can lead it to the power flow's other, inoperable branch), Newton runs
     again from a flat start, whose solution is kept if it converged with a higher
-    lowest voltage."""
+    lowest voltage.
+
+    `method`: "sparse" (default; `powerflow_sparse.power_flow_sparse`: analytic
+    Jacobian, sparse LU) or "dense" (`power_flow`); the same equations and
+    solution."""
     _check(system)
-    res = power_flow(system, start=start, tol=tol, max_iter=max_iter)
+    if method not in ("sparse", "dense"):
+        raise ValueError(f"power flow: method {method!r} is not 'sparse' or 'dense'")
+    solve = power_flow
+    if method == "sparse":
+        from .powerflow_sparse import power_flow_sparse as solve
+    res = solve(system, start=start, tol=tol, max_iter=max_iter)
     low = lambda r: float(jnp.min(r.vm))  # noqa: E731
     if start == "case" and (not bool(res.converged) or low(res) < LOW_V):
-        flat = power_flow(system, start="flat", tol=tol, max_iter=max_iter)
+        flat = solve(system, start="flat", tol=tol, max_iter=max_iter)
         if bool(flat.converged) and (not bool(res.converged) or low(flat) > low(res)):
             res = flat
     if not bool(res.converged):
