@@ -10,6 +10,8 @@ Evaluation order in the vector field, per right-hand-side call:
    governors (read "omega"; write "Pm"): each controller group gathers its inputs at
    its generators' positions and scatters its command back;
 5. the machines' and controllers' derivatives; the SVCs' from their bus voltages.
+   A tripped machine (generator status 0) injects nothing and its states and its
+   controllers' states freeze.
 Commands no controller writes stay at their operating-point values (`held`).
 """
 
@@ -298,7 +300,7 @@ def evaluate(case: Case, op: Operating, mats: StageMatrices, stage, y, u=None):
         efd_cmd = u["Efd_cmd"][g] if "Efd_cmd" in u else jnp.zeros(len(g))
         local = {k: meas[k][g] for k in meas} | {"Vs": vs, "Efd_cmd": efd_cmd}
         cmd[ctl.output] = cmd[ctl.output].at[g].set(ctl.out(x, local, ref))
-        dctrl[i] = ctl.rhs(x, local, ref)
+        dctrl[i] = ctl.rhs(x, local, ref) * gst[g]  # a tripped machine's stop
     dm = []
     for k, (m, x, h, vt) in enumerate(
         zip(case.machines, xm, op.held, vgen, strict=True)

@@ -32,7 +32,11 @@ class GridTrajectory(eqx.Module):
     magnitude (pu). `stable`: no loss of synchronism within the horizon;
     `t_unstable`: when synchronism was lost (inf if never); `exhausted`: the step
     budget ran out first (neither verdict holds); `y_final`: the state at the end
-    (t_end, or where synchronism was lost)."""
+    (t_end, or where synchronism was lost); `gen_on`: 1 where a machine (not an
+    infinite bus) is in service at the sample, 0 from its trip; `delta_ref`: the
+    angles (rad, synchronous frame) of the post-disturbance equilibrium where it is
+    known, the operating point's when the network in force at t_end is the one
+    before the events (faults cleared, branches reclosed), NaN otherwise."""
 
     ts: Float[Array, " T"]
     delta: Float[Array, "T n_gen"]
@@ -48,6 +52,8 @@ class GridTrajectory(eqx.Module):
     exhausted: Bool[Array, ""]
     n_steps: Array
     y_final: Float[Array, " n_state"]
+    gen_on: Float[Array, "T n_gen"]
+    delta_ref: Float[Array, " n_gen"]
 
 
 def coi_weights(case: Case, gen_status) -> Float[Array, " n_gen"]:
@@ -61,12 +67,14 @@ def coi_weights(case: Case, gen_status) -> Float[Array, " n_gen"]:
 
 
 def coi_angles(case: Case, delta, gen_status) -> Float[Array, "... n_gen"]:
-    """Angles referred to the centre of inertia (rad), or to the synchronous frame
-    (the infinite bus's) where the case has an infinite bus."""
+    """Angles referred to the centre of inertia of the machines in service
+    (`gen_status`: one per generator, or one row per sample) (rad), or to the
+    synchronous frame (the infinite bus's) where the case has an infinite bus."""
     if len(case.sources):
         return delta
-    w = coi_weights(case, gen_status)
-    return delta - jnp.sum(w * delta, axis=-1, keepdims=True) / jnp.sum(w)
+    w = coi_weights(case, gen_status)  # (..., n_gen) with a status per sample
+    w_sum = jnp.sum(w, axis=-1, keepdims=True)
+    return delta - jnp.sum(w * delta, axis=-1, keepdims=True) / w_sum
 
 
 def angle_spread(case: Case, delta, gen_status):
@@ -140,7 +148,26 @@ def simulate_case(
     k = jnp.sum(jnp.isfinite(sol.ts)) - 1
     ys = sol.ys[:-1]
     stopped = sol.result == dfx.RESULTS.event_occurred
-    return _record(case, op, mats, t_sw, ts, ys, stopped, sol.ts[k], sol, sol.ys[k])
+    if t_sw.shape[0]:
+        stage = jnp.sum(ts[:, None] >= t_sw[None, :], axis=1)
+    else:
+        stage = jnp.zeros(ts.shape[0], dtype=jnp.int32)
+    gen_on = mats.gen_status[stage] * mask
+    same = _same_network(cfgs, stage[-1])
+    delta_ref = jnp.where(same, _delta_of(case, op, op.y0), jnp.nan)
+    fields = _record(case, op, mats, t_sw, ts, ys, stopped, sol.ts[k], sol, sol.ys[k])
+    return GridTrajectory(**fields, gen_on=gen_on, delta_ref=delta_ref)
+
+
+def _same_network(cfgs, stage):
+    """Whether the network of `stage` is the one before the events (stage 0): same
+    branch and generator status, no fault, no split branch."""
+    keys = ("branch_status", "fault_y", "bolted", "seg_on", "gen_status")
+    out = jnp.asarray(True)
+    for k in keys:
+        a = getattr(cfgs, k)
+        out = out & jnp.all(a[stage] == a[0])
+    return out
 
 
 def _delta_of(case, op, y):
@@ -153,7 +180,9 @@ def _delta_of(case, op, y):
     return d
 
 
-def _record(case, op, mats, t_sw, ts, ys, stopped, t_last, sol, y_last):
+def _record(case, op, mats, t_sw, ts, ys, stopped, t_last, sol, y_last) -> dict:
+    """The sampled fields of a `GridTrajectory` (samples after a loss NaN)."""
+
     def one(t, y):
         stage = jnp.sum(t >= t_sw) if t_sw.shape[0] else 0
         _, meas, i_net = evaluate(case, op, mats, stage, y)
@@ -165,7 +194,7 @@ def _record(case, op, mats, t_sw, ts, ys, stopped, t_last, sol, y_last):
     meas, vbus = jax.vmap(one)(ts, ys_safe)
     nan = jnp.where(valid, 0.0, jnp.nan)[:, None]
     pick = {k: meas[k] + nan for k in ("delta", "omega", "Efd", "Pm", "Pe", "Vt", "Vs")}
-    return GridTrajectory(
+    return dict(
         ts=ts,
         delta=pick["delta"],
         omega=pick["omega"],
