@@ -294,3 +294,63 @@ def test_skip_unsupported_drops_the_records_with_one_warning(tmp_path, capsys):
     ref = tmp_path / "ref.npz"
     assert main([*run, "--case", "smib-gencls", "--out", str(ref)]) == 0
     np.testing.assert_array_equal(np.load(out)["delta"], np.load(ref)["delta"])
+
+
+# --- issue 49: a flag a case cannot use, and a value a device cannot take, are one
+# line (exit 2, nothing written) whatever the entry --------------------------------
+
+_CASE = ["--case", "smib-gencls"]
+
+
+@pytest.mark.parametrize(
+    "argv, needle",
+    [
+        *(
+            (["simulate", *_CASE, "--fault-bus", "2", flag, value], f"{flag} is not")
+            for flag, value in (
+                ("--max-steps", "10"),
+                ("--max-steps", "50000"),  # given at its default: still refused
+                ("--controller", "asc"),
+                ("--preset", "realistic"),
+                ("--adaptation", "realizable"),
+                ("--phi-layer", "0.1"),
+            )
+        ),
+        (["simulate", *_CASE, "--fault-bus", "2", "--max-st", "9"], "--max-steps is"),
+        (["simulate", *_CASE, "--fault-bus", "2", "--reclose"], "without --fault-line"),
+        (
+            ["simulate", *_CASE, "--fault-bus", "2", "--reclose-time", "1"],
+            "--reclose-time is not allowed without --reclose",
+        ),
+        (["cct", *_CASE, "--criterion", "settled"], "--criterion is not allowed"),
+        (["cct", *_CASE, "--fault-reactance", "0.1"], "--fault-reactance is not"),
+        (["montecarlo", *_CASE, "--dist", "d.toml"], "--dist is not allowed"),
+        (["compare", *_CASE, "--scan-step", "0.1"], "--scan-step is not allowed"),
+        (
+            ["simulate", *_CASE, "--fault-bus", "2", "--fault-reactance", "nan"],
+            "--fault-reactance nan is not allowed",
+        ),
+        (
+            ["simulate", *_CASE, "--fault-bus", "2", "--param", "GENCLS.H=1e308"],
+            "GENCLS.H = ",
+        ),
+        (
+            ["simulate", *_CASE, "--fault-bus", "2", "--param", "GENCLS.H=-6.5"],
+            "must be > 0",
+        ),
+        (
+            ["simulate", *_CASE, "--fault-bus", "2", "--param", "GENCLS.xdp=0"],
+            "GENCLS.xdp = ",
+        ),
+        (
+            ["simulate", *_CASE, "--fault-bus", "2", "--param", "GENCLS.state_names=1"],
+            "GENCLS has no parameter 'state_names'",
+        ),
+    ],
+)
+def test_case_flags_and_values_are_refused_in_one_line(argv, needle, tmp_path, capsys):
+    out = tmp_path / "o"
+    assert main([*argv, "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err[-1].startswith("smibjax: error: ") and needle in err[-1], err
+    assert not out.exists()

@@ -121,6 +121,71 @@ def _params(items) -> dict:
     return out
 
 
+_SMIB_FLAGS = (
+    "--set",
+    "--gains",
+    "--controller",
+    "--preset",
+    "--adaptation",
+    "--max-steps",
+    "--phi-layer",
+)
+SMIB_ONLY = {
+    "simulate": _SMIB_FLAGS,
+    "montecarlo": (*_SMIB_FLAGS, "--dist", "--scheduler", "--workers"),
+    "cct": (
+        *_SMIB_FLAGS,
+        "--fault-location",
+        "--fault-reactance",
+        "--reclose-time",
+        "--scan-step",
+        "--criterion",
+    ),
+    "compare": (
+        *_SMIB_FLAGS,
+        "--dist",
+        "--scheduler",
+        "--workers",
+        "--fault-location",
+        "--reclose-time",
+        "--scan-step",
+    ),
+}
+"""Per command, the flags of the paper's SMIB that a --case run has no use for: each
+is refused when given (at any value), never ignored."""
+
+
+def refuse_smib_flags(args) -> None:
+    """CLIError (one line) for a flag of `SMIB_ONLY` given with --case, or a flag
+    given without the flag it qualifies (`simulate --reclose` without
+    --fault-line, --reclose-time without --reclose, --fault-location without
+    --fault-line)."""
+    from .._commandline import given
+
+    for flag in SMIB_ONLY.get(getattr(args, "command", ""), _SMIB_FLAGS):
+        if given(args, flag):
+            hint = (
+                "a case's parameters take --param MODEL.PARAM=VALUE"
+                if flag in ("--set", "--gains", "--preset", "--adaptation")
+                else "a case's devices come from its dyr file"
+                if flag in ("--controller", "--phi-layer")
+                else "it has no meaning for a case"
+            )
+            raise CLIError(
+                f"{flag} is not allowed with --case: it is an option of the paper's "
+                f"SMIB; {hint}"
+            )
+    if getattr(args, "command", "") == "simulate":
+        needs = (
+            ("--reclose", "--fault-line", bool(args.fault_line)),
+            ("--reclose-time", "--reclose", bool(args.reclose)),
+            ("--fault-location", "--fault-line", bool(args.fault_line)),
+        )
+        for flag, needed, have in needs:
+            if given(args, flag) and not have:
+                raise CLIError(f"{flag} is not allowed without {needed} on a case")
+
+
 def load(args):
     """(case, operating point, power flow) from the arguments; CLIError on bad
     input (one line)."""
@@ -130,16 +195,7 @@ def load(args):
     from ..grid.powerflow import PowerFlowError
     from ..grid.psse import PsseError
 
-    for flag, value in (
-        ("--set", getattr(args, "set", None)),
-        ("--gains", getattr(args, "gains", None)),
-    ):
-        if value:
-            raise CLIError(
-                f"{flag} is not allowed with --case: it sets the paper's SMIB "
-                "controller or plant; a case's parameters take --param "
-                "MODEL.PARAM=VALUE"
-            )
+    refuse_smib_flags(args)
     if (
         args.dyr
         and not str(args.case).endswith(".raw")
@@ -176,8 +232,11 @@ def events_from_args(case, args) -> tuple:
             f"--fault-time {t_on} and --clear-time {t_off} must satisfy 0 <= fault < "
             f"clear < --t-end {args.t_end}"
         )
-    if args.fault_reactance < 0:
-        raise CLIError(f"--fault-reactance {args.fault_reactance} must be >= 0")
+    if not 0 <= args.fault_reactance < math.inf:
+        raise CLIError(
+            f"--fault-reactance {args.fault_reactance} is not allowed: must be finite "
+            "and >= 0 (pu)"
+        )
     ev = []
     try:
         if args.fault_bus is not None:
@@ -654,13 +713,14 @@ def case_sets(args) -> dict[str, list[str]]:
 
 def case_summary(rows: dict) -> dict:
     """A `compare --case` row: stable fraction, settling of the COI angles (s;
-    mean and p95 over the stable scenarios), overshoot (rad; mean and p95), the
+    mean and p95 over the stable scenarios that settle), overshoot (rad; mean and
+    p95 over the stable scenarios; a lost run has none), the
     largest field voltage (pu), the lowest bus voltage (pu), runs that spent the
     solver's step budget."""
     st = np.asarray(rows["stable"], dtype=bool)
     ts = np.asarray(rows["settling_angle"], dtype=float)[st]
     ts = ts[np.isfinite(ts)]
-    ov = np.asarray(rows["overshoot"], dtype=float)
+    ov = np.asarray(rows["overshoot"], dtype=float)[st]  # inf where lost
 
     def q(a, p):
         return float(np.percentile(a, p)) if a.size else None
@@ -670,7 +730,7 @@ def case_summary(rows: dict) -> dict:
         "stable_fraction": float(st.mean()),
         "settling_mean": float(ts.mean()) if ts.size else None,
         "settling_p95": q(ts, 95),
-        "overshoot_mean": float(ov.mean()),
+        "overshoot_mean": float(ov.mean()) if ov.size else None,
         "overshoot_p95": q(ov, 95),
         "efd_peak": float(np.max(rows["efd_max"])),
         "v_min": float(np.min(rows["v_min"])),
@@ -791,6 +851,7 @@ def run_compare(args) -> int:
     from .._files import write_json, write_text
     from .compare import output
 
+    refuse_smib_flags(args)
     sets = case_sets(args)
     out = output(args)
     from .._files import check_out_folder

@@ -19,6 +19,8 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float, Int
 
+from .._validate import is_concrete, require
+
 __all__ = [
     "BusFault",
     "LineFault",
@@ -28,6 +30,7 @@ __all__ = [
     "Event",
     "switch_times",
     "check_order",
+    "check_positions",
 ]
 
 Scalar = Float[Array, ""]
@@ -41,6 +44,28 @@ def _i(x):
     return jnp.asarray(x, dtype=jnp.int32)
 
 
+def _check(ev, position: str, times=(), impedance=False) -> None:
+    """`ParameterError` (one line) for concrete fields out of range: a negative
+    position, a time that is not finite and >= 0, times out of order (`times` in
+    their order), a fault impedance that is not finite and >= 0."""
+    name = type(ev).__name__
+    fields = [position, *times] + (["r", "x"] if impedance else [])
+    vals = [getattr(ev, f) for f in fields]
+    if not is_concrete(*vals):
+        return
+    v = {f: np.asarray(a) for f, a in zip(fields, vals, strict=True)}
+    require(v[position] >= 0, name, position, v[position], "must be >= 0 (a position)")
+    for f in times:
+        require(np.isfinite(v[f]) & (v[f] >= 0), name, f, v[f], "must be finite, >= 0")
+    for a, b in zip(times, times[1:], strict=False):
+        require(v[b] >= v[a], name, b, v[b], f"must be >= {a} = {{}}", v[a])
+    if impedance:
+        for f in ("r", "x"):
+            require(
+                np.isfinite(v[f]) & (v[f] >= 0), name, f, v[f], "must be finite, >= 0"
+            )
+
+
 class BusFault(eqx.Module):
     """A three-phase fault at bus position `bus` from `t_on` to `t_off` (s) through
     the impedance r + j x (pu, system base); r = x = 0 is a bolted fault (the bus
@@ -51,6 +76,9 @@ class BusFault(eqx.Module):
     t_off: Scalar = eqx.field(converter=_f)
     r: Scalar = eqx.field(converter=_f, default=0.0)
     x: Scalar = eqx.field(converter=_f, default=0.0)
+
+    def __check_init__(self):
+        _check(self, "bus", ("t_on", "t_off"), impedance=True)
 
     def switches(self):
         return (self.t_on, self.t_off)
@@ -71,6 +99,12 @@ class LineFault(eqx.Module):
     r: Scalar = eqx.field(converter=_f, default=0.0)
     x: Scalar = eqx.field(converter=_f, default=0.0)
 
+    def __check_init__(self):
+        _check(self, "branch", ("t_on", "t_off"), impedance=True)
+        if is_concrete(self.frac):
+            f = np.asarray(self.frac)
+            require((f > 0) & (f < 1), "LineFault", "frac", f, "must lie in (0, 1)")
+
     def switches(self):
         return (self.t_on, self.t_off)
 
@@ -80,6 +114,9 @@ class BranchTrip(eqx.Module):
 
     branch: Int[Array, ""] = eqx.field(converter=_i)
     t: Scalar = eqx.field(converter=_f)
+
+    def __check_init__(self):
+        _check(self, "branch", ("t",))
 
     def switches(self):
         return (self.t,)
@@ -91,6 +128,9 @@ class BranchClose(eqx.Module):
     branch: Int[Array, ""] = eqx.field(converter=_i)
     t: Scalar = eqx.field(converter=_f)
 
+    def __check_init__(self):
+        _check(self, "branch", ("t",))
+
     def switches(self):
         return (self.t,)
 
@@ -101,6 +141,9 @@ class GenTrip(eqx.Module):
 
     gen: Int[Array, ""] = eqx.field(converter=_i)
     t: Scalar = eqx.field(converter=_f)
+
+    def __check_init__(self):
+        _check(self, "gen", ("t",))
 
     def switches(self):
         return (self.t,)
@@ -130,3 +173,26 @@ def check_order(events) -> None:
             f"event times {ts.tolist()} must be finite, >= 0 and in the order the "
             "events are listed"
         )
+
+
+def check_positions(events, n_bus: int, n_branch: int, n_gen: int) -> None:
+    """`ParameterError` (one line) if a concrete position is past the case's buses,
+    branches or generators (positions are 0-based; the command line takes PSS/E
+    numbers)."""
+    for e in events:
+        for field, n, what in (
+            ("bus", n_bus, "buses"),
+            ("branch", n_branch, "branches"),
+            ("gen", n_gen, "generators"),
+        ):
+            if not hasattr(e, field):
+                continue
+            p = getattr(e, field)
+            if is_concrete(p):
+                require(
+                    np.asarray(p) < n,
+                    type(e).__name__,
+                    field,
+                    np.asarray(p),
+                    f"must be a position < {n} (the case has {n} {what})",
+                )

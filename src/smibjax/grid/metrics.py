@@ -31,7 +31,7 @@ from jaxtyping import Array, Bool, Float
 
 from .events import switch_times
 from .loop import Case, Operating
-from .simulate import GridTrajectory, coi_angles, simulate_case
+from .simulate import GridTrajectory, check_events, coi_angles, simulate_case
 
 __all__ = ["GridMetrics", "grid_metrics", "batch_metrics"]
 
@@ -161,6 +161,7 @@ def batch_metrics(
     call = shard_batch(grid_batch_metrics, devices)
 
     def run(events) -> GridMetrics:
+        check_events(case, events)
         n = max(
             jnp.shape(x)[0] for x in jax.tree_util.tree_leaves(events) if jnp.ndim(x)
         )

@@ -384,9 +384,15 @@ def read_raw(path) -> RawData:
             f"{where}: case identification field REV: version {head['REV']:.6g} is not "
             "supported (this reader reads PSS/E 32 and 33 raw files)"
         )
-    if head["SBASE"] <= 0:
+    if not (0 < head["SBASE"] < math.inf):
         raise PsseError(
-            f"{where}: case identification field SBASE: {head['SBASE']!r} is not positive"
+            f"{where}: case identification field SBASE: {head['SBASE']!r} is not "
+            "positive and finite"
+        )
+    if not (0 <= head["BASFRQ"] < math.inf):
+        raise PsseError(
+            f"{where}: case identification field BASFRQ: {head['BASFRQ']!r} is not "
+            "positive and finite (0: the default, 60 Hz)"
         )
     title = tuple((lines[k].rstrip() if k < len(lines) else "") for k in (1, 2))
     raw = RawData(

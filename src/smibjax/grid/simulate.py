@@ -17,11 +17,17 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Bool, Float
 
-from .events import check_order, switch_times
+from .events import check_order, check_positions, switch_times
 from .loop import Case, Operating, evaluate, vector_field
 from .network import stage_configs, stage_matrices
 
-__all__ = ["GridTrajectory", "simulate_case", "coi_angles", "angle_spread"]
+__all__ = [
+    "GridTrajectory",
+    "simulate_case",
+    "check_events",
+    "coi_angles",
+    "angle_spread",
+]
 
 
 class GridTrajectory(eqx.Module):
@@ -108,7 +114,7 @@ def simulate_case(
     (`rtol`, `atol`), or, with `fixed_dt` (s), explicit Euler at that constant step
     and no error control (the prior art's fixed-step integration, for comparison;
     switching times should then be multiples of `fixed_dt`)."""
-    check_order(events)
+    check_events(case, events)
     cfgs = stage_configs(op.grid, events)
     mats = stage_matrices(op.grid, cfgs)
     t_sw = switch_times(events)
@@ -212,19 +218,38 @@ def _record(case, op, mats, t_sw, ts, ys, stopped, t_last, sol, y_last) -> dict:
     )
 
 
-@eqx.filter_jit
+def check_events(case: Case, events) -> None:
+    """`ParameterError`/`ValueError` (one line) for concrete events that do not fit
+    the case (a position past its buses, branches or generators) or are out of time
+    order; traced events are trusted. Run before tracing: under `jit` the events'
+    values are not known."""
+    check_order(events)
+    sys_ = case.system
+    check_positions(events, sys_.n_bus, len(sys_.branches.r), case.n_gen)
+
+
+_simulate_jit = eqx.filter_jit(simulate_case)
+
+
 def simulate_jit(case: Case, op: Operating, events=(), **options) -> GridTrajectory:
     """`simulate_case`, jitted (the case and operating point traced, `options`
-    static)."""
-    return simulate_case(case, op, events, **options)
+    static); concrete events are checked first (`check_events`)."""
+    check_events(case, events)
+    return _simulate_jit(case, op, events, **options)
 
 
 @eqx.filter_jit
-def simulate_batch(case: Case, op: Operating, events, **options) -> GridTrajectory:
-    """`simulate_case` over a batch of scenarios: `events` has a leading batch axis
-    on every leaf that varies (scalars are shared); the case and operating point are
-    shared. Returns a GridTrajectory with a leading batch axis."""
+def _simulate_batch(case: Case, op: Operating, events, **options) -> GridTrajectory:
     axes = jax.tree_util.tree_map(lambda x: 0 if jnp.ndim(x) else None, events)
     return jax.vmap(lambda ev: simulate_case(case, op, ev, **options), in_axes=(axes,))(
         events
     )
+
+
+def simulate_batch(case: Case, op: Operating, events, **options) -> GridTrajectory:
+    """`simulate_case` over a batch of scenarios: `events` has a leading batch axis
+    on every leaf that varies (scalars are shared); the case and operating point are
+    shared. Returns a GridTrajectory with a leading batch axis. Concrete events are
+    checked first (`check_events`)."""
+    check_events(case, events)
+    return _simulate_batch(case, op, events, **options)
