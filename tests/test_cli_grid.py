@@ -354,3 +354,40 @@ def test_case_flags_and_values_are_refused_in_one_line(argv, needle, tmp_path, c
     err = capsys.readouterr().err.strip().splitlines()
     assert err[-1].startswith("smibjax: error: ") and needle in err[-1], err
     assert not out.exists()
+
+
+def test_input_files_that_were_tracebacks_are_one_line(tmp_path, capsys):
+    """Issue 49, class 7: a 30-digit bus number in a raw file (OverflowError), an
+    unsupported dyr model under `modes` (25 lines), a `--dist` range written as a
+    table (KeyError), a gains file's plant preset written as a list (TypeError)."""
+    from smibjax.grid.case import case_files
+
+    raw, dyr = case_files("kundur-gencls")
+    big = tmp_path / "big.raw"
+    lines = raw.read_text().splitlines()
+    k = next(i for i, s in enumerate(lines) if s.lstrip().startswith("1,"))
+    lines[k] = "123456789012345678901234567890" + lines[k][lines[k].index(",") :]
+    big.write_text("\n".join(lines) + "\n")
+    odd = tmp_path / "odd.dyr"
+    odd.write_text(dyr.read_text() + "     1 'IEEET1' 1 0 400 0.04 7.3 -7.3 1 /\n")
+    dist = tmp_path / "d.toml"
+    dist.write_text("t_fault = {lo = 0.5, hi = 1.0}\n")
+    gains = tmp_path / "g.toml"
+    gains.write_text(
+        'schema = "smibjax.gains/1"\ncontroller = "aftsc"\nadaptation = "oracle"\n'
+        '[plant]\npreset = ["paper"]\n[gains]\nk1 = 1.0\n'
+    )
+    for argv, needle in (
+        (
+            ["simulate", "--case", str(big), "--dyr", str(dyr), "--fault-bus", "7"],
+            "bus field I: 1.23456789012e+29 is not a bus number",
+        ),
+        (["modes", "--case", str(raw), "--dyr", str(odd)], "'IEEET1' is not supported"),
+        (["montecarlo", "--dist", str(dist), "--n", "2"], "must be a range [lo, hi]"),
+        (["simulate", "--gains", str(gains)], "plant preset = ['paper']"),
+    ):
+        assert main([*argv, "--out", str(tmp_path / "o")]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and err[0].startswith("smibjax: error: "), err
+        assert needle in err[0], err
+    assert not (tmp_path / "o").exists()

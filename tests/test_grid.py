@@ -618,3 +618,60 @@ def test_a_lost_run_has_no_nan_metric(smib_classical):
     for f in GridMetrics.FIELDS:
         assert not np.isnan(float(getattr(m, f))), f
     assert float(m.overshoot) == np.inf
+
+
+def test_one_validation_path_for_devices_and_events(tmp_path):
+    """The checks a dyr file's values meet hold for the constructors and
+    `set_params` too, and events with concrete values are checked when built and,
+    for their positions, against the case before any tracing."""
+    from smibjax._validate import ParameterError
+    from smibjax.grid.case import case_files
+    from smibjax.grid.params import set_params
+    from smibjax.grid.psse import PsseError, read_raw
+
+    base = dict(gen=[0], mbase=[900.0], H=[6.5], D=[0.0], xdp=[0.3], ra=[0.0])
+    GENCLS(**base)
+    for field, value, needle in (
+        ("H", 1e308, r"GENCLS.H = \[1.e\+308\] is not allowed: must be finite"),
+        ("H", -6.5, r"GENCLS.H = \[-6.5\] is not allowed: must be > 0"),
+        ("xdp", 0.0, r"GENCLS.xdp = \[0.\] is not allowed: must be > 0"),
+        ("D", np.nan, r"GENCLS.D = \[nan\] is not allowed"),
+    ):
+        with pytest.raises(ParameterError, match=needle):
+            GENCLS(**{**base, field: [value]})
+    kundur_full = load_case("kundur")
+    for name, value, needle in (
+        ("GENROU[1:1].xd", -1.0, "GENROU.xd = "),
+        ("SEXS.EMAX", -10.0, "SEXS.EMAX = "),
+        ("GENROU.H", np.inf, "GENROU.H = "),
+    ):
+        with pytest.raises(ParameterError, match=needle):
+            set_params(kundur_full, {name: value})
+    for make, needle in (
+        (lambda: BusFault(bus=0, t_on=0.5, t_off=0.2), "BusFault.t_off = 0.2"),
+        (lambda: BusFault(bus=0, t_on=0.5, t_off=0.6, x=np.nan), "BusFault.x = nan"),
+        (lambda: BusFault(bus=-1, t_on=0.5, t_off=0.6), "BusFault.bus = -1"),
+        (lambda: LineFault(branch=0, frac=1.5, t_on=0, t_off=1), "frac = 1.5"),
+        (lambda: GenTrip(gen=0, t=np.inf), "GenTrip.t = inf"),
+        (lambda: BranchTrip(branch=0, t=-1.0), "BranchTrip.t = -1"),
+    ):
+        with pytest.raises(ParameterError, match=needle):
+            make()
+    case = load_case("smib-gencls")
+    op, _ = operating_point(case)
+    for ev, needle in (
+        (BusFault(bus=999, t_on=0.1, t_off=0.2), "BusFault.bus = 999 is not allowed"),
+        (GenTrip(gen=9, t=0.1), "GenTrip.gen = 9 is not allowed: must be a position"),
+    ):
+        with pytest.raises(ParameterError, match=needle):
+            simulate_jit(case, op, (ev,), t_end=1.0)
+    raw, _ = case_files("kundur-gencls")
+    lines = raw.read_text().splitlines()
+    for value in ("-60", "nan"):
+        head = lines[0].split(",")
+        head[5] = (
+            " " + value + head[5][head[5].index("/") - 1 :] if "/" in head[5] else value
+        )
+        (tmp_path / "k.raw").write_text("\n".join([",".join(head), *lines[1:]]) + "\n")
+        with pytest.raises(PsseError, match="field BASFRQ"):
+            read_raw(tmp_path / "k.raw")

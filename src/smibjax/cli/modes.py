@@ -144,12 +144,15 @@ def _gains_file(path) -> dict:
 def _load(args):
     from ..grid.case import CaseError
     from ..grid.params import ParamError, get_param, set_params
+    from ..grid.psse import PsseError
     from .grid import load_case_reporting
 
     try:
         case = load_case_reporting(args.case, args.dyr, args.skip_unsupported)
     except (CaseError, FileNotFoundError) as e:
         raise CLIError(f"--case {args.case!r} is not allowed: {e}") from None
+    except PsseError as e:  # a record the reader refuses: file:line: what
+        raise CLIError(str(e)) from None
     sets = {**_gains_file(args.gains), **parse_sets(args.set)}
     try:
         for name in sets:

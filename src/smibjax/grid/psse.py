@@ -442,11 +442,25 @@ def read_raw(path) -> RawData:
     return raw
 
 
+MAX_BUS = 999_999
+"""The largest bus number (PSS/E's is 999,997)."""
+
+
+def _short(x) -> str:
+    """A number as written in a one-line message: at most 12 significant digits."""
+    return f"{x:.12g}" if abs(x) >= 1e12 else str(x)
+
+
 def _fill_and_check(raw: RawData) -> None:
     """Fill the defaults that depend on other data and check the bus references."""
     name = raw.path
     buses = {}
     for b in raw.buses:
+        if not 1 <= b["I"] <= MAX_BUS:
+            raise PsseError(
+                f"{name}:{b['_line']}: bus field I: {_short(b['I'])} is not a bus "
+                f"number (1 to {MAX_BUS})"
+            )
         if b["I"] in buses:
             raise PsseError(
                 f"{name}:{b['_line']}: bus field I: bus {b['I']} is already defined "
