@@ -10,6 +10,7 @@ along the line, cleared by opening it at --clear-time; `--reclose` recloses it a
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 import sys
@@ -143,6 +144,7 @@ SMIB_ONLY = {
     ),
     "compare": (
         *_SMIB_FLAGS,
+        "--resume",
         "--dist",
         "--scheduler",
         "--workers",
@@ -550,53 +552,222 @@ def grid_rows(case, op, dist, n, chunk, args, desc="scenarios"):
 
 
 def run_montecarlo(args) -> int:
-    """`montecarlo --case`: fault scenarios drawn over buses or lines; rows.csv,
-    summary.json in --out (default: a new folder runs/montecarlo-<time>, as the
-    SMIB's montecarlo)."""
-    from .._commandline import out_path
-    from .._files import check_out_folder, write_json, write_text
-    from ..grid.metrics import GridMetrics
+    """`montecarlo --case`: fault scenarios drawn over buses or lines
+    (`smibjax.grid.montecarlo`), run in chunks into the run folder --out (default:
+    a new folder runs/montecarlo-<time>, as the SMIB's montecarlo): run.json (what
+    the run computes and its context), chunks/NNNNNN.npz (each the moment it is
+    computed), then scenarios.csv, summary.json and summary.md. `--resume` finishes
+    a run from the chunks on disk: the files are those of an uninterrupted run."""
+    from .._commandline import out_path, progress_bars, say_compiling
+    from .._files import check_out_folder, write_npz
+    from ..grid.montecarlo import GridMonteCarloSpec, chunk_runner, json_ready
 
+    refuse_smib_flags(args)
+    if args.resume and not args.out:
+        raise CLIError("--resume needs --out DIR (the folder of the run to finish)")
     out = out_path(args.out, "montecarlo")
     check_out_folder(out)  # before any work
-    if out.exists() and any(out.iterdir()) and not getattr(args, "force", False):
-        raise CLIError(f"--out {out}: the folder is not empty (use --force)")
+    if not args.resume and out.exists() and (not out.is_dir() or any(out.iterdir())):
+        raise CLIError(
+            f"--out {str(out)!r} exists and is not empty: choose a new folder or add "
+            "--resume to finish the run in it"
+        )
     case, op, pf = load(args)
     dist, n, chunk = _grid_distribution(case, args)
-    print(_describe(case, pf), file=sys.stderr)
-    t0 = time.perf_counter()
-    rows, meta = grid_rows(case, op, dist, n, chunk, args)
-    wall = time.perf_counter() - t0
-    st = np.asarray(rows["stable"], dtype=bool)
-    settle = np.asarray(rows["settling_angle"], dtype=float)
-    fin = settle[st & np.isfinite(settle)]
-    summary = {
-        "case": case.name,
-        "n": n,
-        "seed": args.seed,
-        "stable_fraction": float(st.mean()),
-        "settling_mean": float(fin.mean()) if fin.size else None,
-        "settling_p95": float(np.percentile(fin, 95)) if fin.size else None,
-        "exhausted": int(np.sum(rows["exhausted"])),
-        "seconds": wall,
-        "distribution": {k: v for k, v in dist.__dict__.items()},
-    }
-    print(
-        f"{n} scenarios in {wall:.1f} s: stable {summary['stable_fraction']:.3f}, "
-        f"settling mean {summary['settling_mean']} s"
+    spec = GridMonteCarloSpec(
+        n=n,
+        seed=int(args.seed),
+        chunk=chunk,
+        t_end=float(args.t_end),
+        dt_save=float(args.dt_save),
+        rtol=float(args.rtol),
+        atol=float(args.atol),
+        distribution=json_ready(dataclasses.asdict(dist)),
     )
-    out.mkdir(parents=True, exist_ok=True)
-    where_name = "bus_position" if dist.kind == "bus" else "branch_position"
-    cols = [where_name, "t_fault", "t_clear", *GridMetrics.FIELDS]
-    lines = [",".join(cols)]
-    for i in range(n):
-        vals = [meta["bus"][i], meta["t_fault"][i], meta["t_clear"][i]]
-        vals += [rows[f][i] for f in GridMetrics.FIELDS]
-        lines.append(",".join(str(v) for v in vals))
-    write_text(out / "rows.csv", "\n".join(lines) + "\n")
-    write_json(out / "summary.json", summary)
-    print(f"wrote {out}/rows.csv, {out}/summary.json")
+    context = {
+        "case": case.name,
+        "case_files": [str(args.case), str(args.dyr) if args.dyr else None],
+        "skip_unsupported": bool(args.skip_unsupported),
+        "params": _params(args.param),
+        "load_factor": float(args.load_factor),
+    }
+    manifest = {"spec": spec.to_dict(), "context": context, "complete": False}
+    if args.resume:
+        _check_grid_resume(out, manifest)
+    else:
+        _write_new(out / "run.json", json.dumps(manifest, indent=2) + "\n")
+    print(_describe(case, pf), file=sys.stderr)
+    todo = [k for k in range(spec.n_chunks) if not _grid_chunk_ok(out, spec, k)]
+    t0 = time.perf_counter()
+    if todo:
+        compute = chunk_runner(case, op, spec)
+        say_compiling("the batched case simulator", "jit_grid_batch_metrics")
+        done = spec.n - sum(
+            spec.chunk_range(k)[1] - spec.chunk_range(k)[0] for k in todo
+        )
+        with progress_bars() as make:  # closed also when a chunk fails
+            bar = make(total=n, initial=done, desc="scenarios", unit="sc")
+            for k in todo:
+                rows = compute(k)
+                write_npz(_grid_chunk_path(out, k), rows)
+                bar.update(len(rows["index"]))
+    wall = time.perf_counter() - t0
+    rows, summary = _grid_finish(out, spec, context, manifest)
+    print(
+        f"{n} scenarios ({len(todo)} of {spec.n_chunks} chunks computed now, "
+        f"{wall:.1f} s): stable {summary['stable_fraction']}, settling mean "
+        f"{summary['settling_angle_s']['mean']} s"
+    )
+    print(f"wrote {out}/scenarios.csv, summary.json, summary.md")
     return 0
+
+
+def _grid_chunk_path(out: Path, k: int) -> Path:
+    return out / "chunks" / f"{k:06d}.npz"
+
+
+def _grid_chunk_ok(out: Path, spec, k: int) -> bool:
+    """Chunk k is on disk and whole (it loads and holds its scenario range in every
+    column); one that is not is recomputed."""
+    from ..grid.montecarlo import METRIC_COLUMNS
+
+    path = _grid_chunk_path(out, k)
+    if not path.is_file():
+        return False
+    start, stop = spec.chunk_range(k)
+    try:
+        with np.load(path) as z:
+            cols = {c: np.asarray(z[c]) for c in z.files}
+    except Exception:  # a truncated zip raises BadZipFile, EOFError, ValueError...
+        return False
+    must = ("index", "t_fault", "t_clear", *METRIC_COLUMNS)
+    return all(
+        c in cols and cols[c].shape == (stop - start,) for c in must
+    ) and np.array_equal(cols["index"], np.arange(start, stop))
+
+
+def _check_grid_resume(out: Path, manifest: dict) -> None:
+    """CLIError (one line) unless `out` holds an unfinished run of the same spec and
+    context."""
+    path = out / "run.json"
+    try:
+        saved = json.loads(path.read_text(encoding="utf-8"))
+        if not isinstance(saved, dict) or "spec" not in saved:
+            raise ValueError("not a grid Monte Carlo run")
+    except FileNotFoundError:
+        raise CLIError(
+            f"--resume: {str(out)!r} holds no Monte Carlo run (no run.json)"
+        ) from None
+    except (ValueError, UnicodeDecodeError) as e:
+        reason = str(e).splitlines()[0][:80] if str(e) else type(e).__name__
+        raise CLIError(
+            f"--resume: {str(path)!r} is damaged ({reason}): start a new run in a "
+            "new --out folder"
+        ) from None
+    if saved.get("complete"):
+        raise CLIError(f"--resume: the run in {str(out)!r} is complete")
+    old, new = _flat(saved), _flat(json.loads(json.dumps(manifest)))
+    for key in new:
+        if key != "complete" and old.get(key, "(absent)") != new[key]:
+            raise CLIError(
+                f"--resume: {key} = {new[key]!r} differs from the run in "
+                f"{str(out)!r} ({key} = {old.get(key, '(absent)')!r}); repeat its "
+                "options"
+            )
+
+
+def _flat(d: dict, head: str = "") -> dict:
+    """A nested table as dotted keys."""
+    out = {}
+    for k, v in d.items():
+        key = f"{head}.{k}" if head else str(k)
+        if isinstance(v, dict):
+            out.update(_flat(v, key))
+        else:
+            out[key] = v
+    return out
+
+
+def _write_new(path: Path, text: str) -> None:
+    """Write a new file atomically, put in place with a hard link: refused (one
+    line) if `path` exists by then (another run on the same --out), never replaced."""
+    from .._files import atomic_write
+
+    def w(tmp):
+        with open(tmp, "w", encoding="utf-8") as fh:
+            fh.write(text)
+
+    atomic_write(path, w, new=True)
+
+
+def _csv_cell(v) -> str:
+    if isinstance(v, str | np.str_):
+        return str(v)
+    if isinstance(v, bool | np.bool_):
+        return str(int(v))
+    if isinstance(v, int | np.integer):
+        return str(int(v))
+    return f"{float(v):.10g}"
+
+
+def _grid_summary_md(summary: dict, spec, context: dict) -> str:
+    lines = [
+        f"# Monte Carlo: {context['case']}",
+        "",
+        f"{spec.n} scenarios (seed {spec.seed}), t_end {spec.t_end:g} s, dt_save "
+        f"{spec.dt_save:g} s, rtol {spec.rtol:g}, atol {spec.atol:g}, load factor "
+        f"{context['load_factor']:g}, parameters "
+        + (
+            ", ".join(f"{k} = {v:g}" for k, v in context["params"].items())
+            or "the case's"
+        )
+        + ".",
+        "",
+        "| figure | value |",
+        "|---|---|",
+    ]
+    for k, v in summary.items():
+        if k in ("context", "spec"):
+            continue
+        if isinstance(v, dict):
+            v = ", ".join(f"{q} {x}" for q, x in v.items())
+        lines.append(f"| {k} | {v} |")
+    return "\n".join(lines) + "\n"
+
+
+def _grid_finish(out: Path, spec, context: dict, manifest: dict):
+    """Assemble the chunks into scenarios.csv, summary.json and summary.md (new
+    files, hard-linked), then mark run.json complete."""
+    from .._files import write_json
+    from ..grid.montecarlo import summarize
+
+    parts = []
+    for k in range(spec.n_chunks):
+        with np.load(_grid_chunk_path(out, k)) as z:
+            parts.append({c: np.asarray(z[c]) for c in z.files})
+    cols = list(parts[0])
+    rows = {c: np.concatenate([p[c] for p in parts]) for c in cols}
+    lines = [",".join(cols)]
+    lines += [
+        ",".join(_csv_cell(rows[c][i]) for c in cols) for i in range(len(rows["index"]))
+    ]
+    summary = summarize(rows) | {"spec": spec.to_dict(), "context": context}
+    _write_new(out / "scenarios.csv", "\n".join(lines) + "\n")
+    _write_new(out / "summary.json", json.dumps(_clean(summary), indent=2) + "\n")
+    _write_new(out / "summary.md", _grid_summary_md(summary, spec, context))
+    write_json(out / "run.json", manifest | {"complete": True})
+    return rows, summary
+
+
+def _clean(o):
+    """inf and NaN as strings (JSON has neither)."""
+    if isinstance(o, float) and not math.isfinite(o):
+        return str(o)
+    if isinstance(o, dict):
+        return {k: _clean(v) for k, v in o.items()}
+    if isinstance(o, list | tuple):
+        return [_clean(v) for v in o]
+    return o
 
 
 def _int_list(text):

@@ -161,13 +161,17 @@ def switch_times(events) -> Float[Array, " n_switch"]:
 
 
 def check_order(events) -> None:
-    """ValueError (one line) if concrete switch times are out of order or negative."""
+    """ValueError (one line) if concrete switch times are out of order or negative
+    (for a batch of scenarios, in any scenario)."""
     try:
         ts = np.asarray(switch_times(events))
     except Exception:  # traced: nothing to check
         return
+    # (n_switch,) or, for a batch of scenarios, (n_switch, batch)
     if ts.size and (
-        np.any(np.diff(ts) < 0) or ts[0] < 0 or not np.all(np.isfinite(ts))
+        np.any(np.diff(ts, axis=0) < 0)
+        or np.any(ts[0] < 0)
+        or not np.all(np.isfinite(ts))
     ):
         raise ValueError(
             f"event times {ts.tolist()} must be finite, >= 0 and in the order the "
