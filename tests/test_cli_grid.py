@@ -172,8 +172,8 @@ def test_montecarlo_on_a_case_writes_to_the_output_root_without_out(
     tmp_path, monkeypatch
 ):
     """Issue 32: `montecarlo --case` without --out computed and wrote nothing. It
-    writes a new folder runs/montecarlo-<time> like the SMIB's montecarlo: rows.csv
-    (one row per scenario) and summary.json (n, seed, stable fraction = the rows'
+    writes a new folder runs/montecarlo-<time> like the SMIB's montecarlo:
+    scenarios.csv (one row per scenario) and summary.json (n, seed, stable fraction = the rows'
     mean)."""
     import json
 
@@ -183,12 +183,12 @@ def test_montecarlo_on_a_case_writes_to_the_output_root_without_out(
     argv += ["--fault-times", "0.2:0.3", "--clear-after", "0.05:0.1", "--seed", "2"]
     assert main(argv) == 0
     (out,) = (tmp_path / "runs").glob("montecarlo-*")
-    lines = (out / "rows.csv").read_text().strip().splitlines()
+    lines = (out / "scenarios.csv").read_text().strip().splitlines()
     assert len(lines) == 1 + 3
     stable = [row.split(",")[lines[0].split(",").index("stable")] for row in lines[1:]]
     summary = json.loads((out / "summary.json").read_text())
-    assert (summary["n"], summary["seed"]) == (3, 2)
-    assert summary["stable_fraction"] == sum(s == "True" for s in stable) / 3
+    assert (summary["n"], summary["spec"]["seed"]) == (3, 2)
+    assert summary["stable_fraction"] == round(sum(s == "1" for s in stable) / 3, 6)
     assert main(argv) == 0  # a second run: a new folder, the first one kept
     assert len(list((tmp_path / "runs").glob("montecarlo-*"))) == 2
 
@@ -213,9 +213,10 @@ def test_montecarlo_on_a_case_rows_match_single_runs_and_not_the_chunk(tmp_path)
     for chunk in ("3", "5"):
         out = tmp_path / f"c{chunk}"
         assert main([*common, "--chunk", chunk, "--out", str(out)]) == 0
-        lines = (out / "rows.csv").read_text().strip().splitlines()
+        lines = (out / "scenarios.csv").read_text().strip().splitlines()
         head = lines[0].split(",")
-        assert head == ["bus_position", "t_fault", "t_clear", *GridMetrics.FIELDS]
+        scen = ["index", "fault_bus", "t_fault", "t_clear", "t_reclose"]
+        assert head == [*scen, "fault_r", "fault_x", *GridMetrics.FIELDS]
         tables.append([dict(zip(head, s.split(","), strict=True)) for s in lines[1:]])
     a, b = tables
     assert len(a) == len(b) == 5
@@ -232,9 +233,10 @@ def test_montecarlo_on_a_case_rows_match_single_runs_and_not_the_chunk(tmp_path)
         m = grid_metrics(case, tr, jnp.asarray(float(ev.t_on[i])))
         stable.append(bool(m.stable))
         for row in (a[i], b[i]):
-            assert int(row["bus_position"]) == int(ev.bus[i])
-            assert float(row["t_clear"]) == float(ev.t_off[i])
-            assert (row["stable"] == "True") == bool(m.stable)
+            # the PSS/E bus number (smib-gencls: position + 1), not the position
+            assert int(row["fault_bus"]) == int(ev.bus[i]) + 1
+            assert float(row["t_clear"]) == pytest.approx(float(ev.t_off[i]), rel=1e-9)
+            assert (row["stable"] == "1") == bool(m.stable)
             for f in ("max_spread", "v_min", "v_max", "efd_max"):
                 np.testing.assert_allclose(
                     float(row[f]), float(getattr(m, f)), rtol=1e-4, err_msg=f
@@ -391,3 +393,74 @@ def test_input_files_that_were_tracebacks_are_one_line(tmp_path, capsys):
         assert len(err) == 1 and err[0].startswith("smibjax: error: "), err
         assert needle in err[0], err
     assert not (tmp_path / "o").exists()
+
+
+# the grid Monte Carlo of the tests below: 6 scenarios in chunks of 3 at 2 s (the
+# batch program of the tests above)
+_MC = ["montecarlo", "--case", "smib-gencls", "--n", "6", "--chunk", "3"]
+_MC += ["--t-end", "2", "--fault-times", "0.2:0.3", "--clear-after", "0.1:1.2"]
+
+_KILLED = """
+import os, signal, sys
+import smibjax.cli.grid as g
+from smibjax.cli import main
+write = g._write_chunk
+def write_then_die(path, rows):
+    write(path, rows)
+    os.kill(os.getpid(), signal.SIGKILL)  # kill -9 after the first chunk
+g._write_chunk = write_then_die
+sys.exit(main(sys.argv[1:]))
+"""
+
+
+@CASE_BATCH
+def test_grid_montecarlo_killed_and_resumed_writes_the_uninterrupted_rows(tmp_path):
+    """Issue 49, class 4: a run killed with SIGKILL after its first chunk, then
+    `--resume`d, writes the rows of an uninterrupted run (before: nothing was
+    written until the end, and --resume ran everything again); the chunk on disk
+    is not recomputed."""
+    import os
+    import signal
+    import subprocess
+    import sys
+
+    killed, whole = tmp_path / "killed", tmp_path / "whole"
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)}
+    p = subprocess.run(
+        [sys.executable, "-c", _KILLED, *_MC, "--out", str(killed)],
+        env=env,
+        capture_output=True,
+        timeout=600,
+    )
+    assert p.returncode == -signal.SIGKILL, p.stderr.decode()[-2000:]
+    first = killed / "chunks" / "000000.npz"
+    assert first.is_file() and not (killed / "chunks" / "000001.npz").exists()
+    assert not (killed / "scenarios.csv").exists()
+    stamp = first.stat().st_mtime_ns
+    assert main([*_MC, "--out", str(killed)]) == 2  # not empty: resume or new folder
+    assert main([*_MC, "--out", str(killed), "--resume", "--seed", "1"]) == 2
+    assert main([*_MC, "--out", str(killed), "--resume"]) == 0
+    assert first.stat().st_mtime_ns == stamp
+    assert main([*_MC, "--out", str(whole)]) == 0
+    for name in ("scenarios.csv", "summary.md"):
+        assert (killed / name).read_text() == (whole / name).read_text()
+    assert main([*_MC, "--out", str(killed), "--resume"]) == 2  # complete
+
+
+@CASE_BATCH
+def test_grid_montecarlo_never_replaces_another_runs_output(tmp_path, monkeypatch):
+    """Two runs on one --out: a file another run put there while this one worked is
+    kept and this run refuses in one line (before: os.replace, the other run's
+    results silently lost)."""
+    import smibjax.cli.grid as g
+
+    out = tmp_path / "mc"
+    write = g._write_chunk
+
+    def other_run_meanwhile(path, rows):
+        write(path, rows)
+        (out / "scenarios.csv").write_text("the other run's rows\n")
+
+    monkeypatch.setattr(g, "_write_chunk", other_run_meanwhile)
+    assert main([*_MC, "--out", str(out)]) == 2
+    assert (out / "scenarios.csv").read_text() == "the other run's rows\n"

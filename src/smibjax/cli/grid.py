@@ -559,7 +559,7 @@ def run_montecarlo(args) -> int:
     computed), then scenarios.csv, summary.json and summary.md. `--resume` finishes
     a run from the chunks on disk: the files are those of an uninterrupted run."""
     from .._commandline import out_path, progress_bars, say_compiling
-    from .._files import check_out_folder, write_npz
+    from .._files import check_out_folder
     from ..grid.montecarlo import GridMonteCarloSpec, chunk_runner, json_ready
 
     refuse_smib_flags(args)
@@ -609,7 +609,7 @@ def run_montecarlo(args) -> int:
             bar = make(total=n, initial=done, desc="scenarios", unit="sc")
             for k in todo:
                 rows = compute(k)
-                write_npz(_grid_chunk_path(out, k), rows)
+                _write_chunk(_grid_chunk_path(out, k), rows)
                 bar.update(len(rows["index"]))
     wall = time.perf_counter() - t0
     rows, summary = _grid_finish(out, spec, context, manifest)
@@ -620,6 +620,13 @@ def run_montecarlo(args) -> int:
     )
     print(f"wrote {out}/scenarios.csv, summary.json, summary.md")
     return 0
+
+
+def _write_chunk(path: Path, rows: dict) -> None:
+    """A computed chunk, atomically (a kill leaves it whole or absent)."""
+    from .._files import write_npz
+
+    write_npz(path, rows)
 
 
 def _grid_chunk_path(out: Path, k: int) -> Path:
