@@ -689,3 +689,22 @@ def test_tuner_failing_mid_run_prints_the_error_on_its_own_line(
     err = capsys.readouterr().err
     assert "tuning:" in err  # the bar was drawn
     _error_on_its_own_line(err)
+
+
+def test_compare_set_of_an_avr_pss_parameter_is_honoured(capsys):
+    """Issue 49, class 5: `compare --gains avr-pss --set K_A=0.0001` ran the
+    AVR-PSS at its own K_A (only the paper's law's gains were passed on). Each set
+    takes the --set values that are its controller's parameters; the paper's law
+    has no K_A and says so in one warning."""
+    from smibjax.cli.compare import _warn_dropped_sets, resolve_gain_set_context
+
+    sets = {"K_A": 1e-4, "k1": 2.0}
+    _, avr, ctx_avr, _ = resolve_gain_set_context("avr-pss", sets)
+    _, law, ctx_law, _ = resolve_gain_set_context("paper", sets)
+    assert float(avr.K_A) == 1e-4 and float(law.k1) == 2.0
+    _warn_dropped_sets("paper", ctx_law, sets)
+    _warn_dropped_sets("avr-pss", ctx_avr, sets)
+    err = capsys.readouterr().err.splitlines()
+    assert len(err) == 2
+    assert "--set K_A does not apply to set 'paper'" in err[0]
+    assert "--set k1 does not apply to set 'avr-pss'" in err[1]
