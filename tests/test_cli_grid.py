@@ -359,9 +359,11 @@ def test_case_flags_and_values_are_refused_in_one_line(argv, needle, tmp_path, c
 
 
 def test_input_files_that_were_tracebacks_are_one_line(tmp_path, capsys):
-    """Issue 49, class 7: a 30-digit bus number in a raw file (OverflowError), an
-    unsupported dyr model under `modes` (25 lines), a `--dist` range written as a
-    table (KeyError), a gains file's plant preset written as a list (TypeError)."""
+    """Issue 49, classes 7 and 10: a 30-digit bus number in a raw file
+    (OverflowError), an unsupported dyr model under `modes` (25 lines), a generator
+    voltage set point of 0 (a power flow "not converged" with a NaN mismatch), a
+    `--dist` range written as a table (KeyError), a gains file's plant preset
+    written as a list (TypeError)."""
     from smibjax.grid.case import case_files
 
     raw, dyr = case_files("kundur-gencls")
@@ -370,6 +372,20 @@ def test_input_files_that_were_tracebacks_are_one_line(tmp_path, capsys):
     k = next(i for i, s in enumerate(lines) if s.lstrip().startswith("1,"))
     lines[k] = "123456789012345678901234567890" + lines[k][lines[k].index(",") :]
     big.write_text("\n".join(lines) + "\n")
+    vs0 = tmp_path / "vs0.raw"  # a generator's voltage set point 0: a NaN mismatch
+    g = next(i for i, s in enumerate(lines) if "GENERATOR DATA" in s) + 1
+    fields = raw.read_text().splitlines()[g].split(",")
+    fields[6] = " 0.0"
+    vs0.write_text(
+        "\n".join(
+            [
+                *raw.read_text().splitlines()[:g],
+                ",".join(fields),
+                *raw.read_text().splitlines()[g + 1 :],
+            ]
+        )
+        + "\n"
+    )
     odd = tmp_path / "odd.dyr"
     odd.write_text(dyr.read_text() + "     1 'IEEET1' 1 0 400 0.04 7.3 -7.3 1 /\n")
     dist = tmp_path / "d.toml"
@@ -385,6 +401,10 @@ def test_input_files_that_were_tracebacks_are_one_line(tmp_path, capsys):
             "bus field I: 1.23456789012e+29 is not a bus number",
         ),
         (["modes", "--case", str(raw), "--dyr", str(odd)], "'IEEET1' is not supported"),
+        (
+            ["simulate", "--case", str(vs0), "--dyr", str(dyr), "--fault-bus", "7"],
+            "generator field VS: 0.0 is not a positive voltage set point",
+        ),
         (["montecarlo", "--dist", str(dist), "--n", "2"], "must be a range [lo, hi]"),
         (["simulate", "--gains", str(gains)], "plant preset = ['paper']"),
     ):

@@ -490,9 +490,14 @@ def _fill_and_check(raw: RawData) -> None:
         known(r, "generator", "I")
         if r["MBASE"] is None:
             r["MBASE"] = raw.sbase
-        if r["MBASE"] <= 0:
+        if not 0 < r["MBASE"] < math.inf:
             raise PsseError(
                 f"{name}:{r['_line']}: generator field MBASE: {r['MBASE']!r} is not positive"
+            )
+        if not 0 < r["VS"] < math.inf:  # a power flow from 0 V has no solution
+            raise PsseError(
+                f"{name}:{r['_line']}: generator field VS: {r['VS']!r} is not a "
+                "positive voltage set point (pu)"
             )
     for r in raw.branches:
         known(r, "branch", "I")
