@@ -484,3 +484,25 @@ def test_grid_montecarlo_never_replaces_another_runs_output(tmp_path, monkeypatc
     monkeypatch.setattr(g, "_write_chunk", other_run_meanwhile)
     assert main([*_MC, "--out", str(out)]) == 2
     assert (out / "scenarios.csv").read_text() == "the other run's rows\n"
+
+
+def test_compare_summary_of_a_set_with_a_lost_run_has_no_nan():
+    """Issue 49, class 3: one unstable scenario made compare --case's overshoot mean
+    and p95 NaN. A lost run's overshoot is inf (`grid_metrics`), and the overshoot
+    figures are over the stable scenarios, as the settling figures."""
+    from smibjax.cli.grid import case_summary
+
+    rows = {
+        "stable": [True, True, False],
+        "settling_angle": [2.0, np.inf, np.inf],
+        "overshoot": [0.2, 0.4, np.inf],
+        "efd_max": [1.5, 1.6, 1.7],
+        "v_min": [0.0, 0.1, 0.2],
+        "exhausted": [False, False, False],
+    }
+    s = case_summary(rows)
+    assert s["overshoot_mean"] == pytest.approx(0.3)
+    assert s["overshoot_p95"] == pytest.approx(0.39)
+    assert s["settling_mean"] == 2.0 and s["stable_fraction"] == pytest.approx(2 / 3)
+    none = case_summary({**rows, "stable": [False] * 3})
+    assert none["overshoot_mean"] is None and none["settling_mean"] is None

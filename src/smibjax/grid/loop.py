@@ -300,7 +300,8 @@ def evaluate(case: Case, op: Operating, mats: StageMatrices, stage, y, u=None):
         efd_cmd = u["Efd_cmd"][g] if "Efd_cmd" in u else jnp.zeros(len(g))
         local = {k: meas[k][g] for k in meas} | {"Vs": vs, "Efd_cmd": efd_cmd}
         cmd[ctl.output] = cmd[ctl.output].at[g].set(ctl.out(x, local, ref))
-        dctrl[i] = ctl.rhs(x, local, ref) * gst[g]  # a tripped machine's stop
+        d = ctl.rhs(x, local, ref)  # (n_states, k); a tripped machine's stop:
+        dctrl[i] = (jnp.reshape(d, (-1, len(g))) * gst[g]).reshape(jnp.shape(d))
     dm = []
     for k, (m, x, h, vt) in enumerate(
         zip(case.machines, xm, op.held, vgen, strict=True)
