@@ -665,6 +665,12 @@ def test_one_validation_path_for_devices_and_events(tmp_path):
     ):
         with pytest.raises(ParameterError, match=needle):
             simulate_jit(case, op, (ev,), t_end=1.0)
+    # a sampling coarser than the horizon left no sample after the fault (NaN
+    # voltages, a "settled" verdict from t = 0 alone)
+    with pytest.raises(ParameterError, match=r"dt_save = 2 s is not allowed"):
+        simulate_jit(
+            case, op, (BusFault(bus=1, t_on=0.1, t_off=0.2),), dt_save=2.0, t_end=1.0
+        )
     raw, _ = case_files("kundur-gencls")
     lines = raw.read_text().splitlines()
     for value in ("-60", "nan"):

@@ -98,7 +98,7 @@ def grid_metrics(
     s_a = jnp.where(ok, _settling(tr.ts, d_err, band_angle, t_first, window), jnp.inf)
     s_w = jnp.where(ok, _settling(tr.ts, w_err, band_speed, t_first, window), jnp.inf)
     spread = jnp.max(jnp.where(on & valid[:, None], jnp.abs(rel), 0.0))
-    vb = jnp.where(after[:, None], tr.v_bus, jnp.nan)
+    vb = jnp.where(after[:, None], jnp.nan_to_num(tr.v_bus, nan=jnp.inf), jnp.inf)
     efd = jnp.where(on & valid[:, None], tr.efd, -jnp.inf)
     return GridMetrics(
         stable=ok,
@@ -107,8 +107,8 @@ def grid_metrics(
         settling_speed=s_w,
         overshoot=jnp.where(ok, jnp.max(d_err), jnp.inf),
         max_spread=spread,
-        v_min=jnp.nanmin(vb),
-        v_max=jnp.nanmax(vb),
+        v_min=jnp.min(vb),  # inf, -inf: no sample after the first event
+        v_max=jnp.max(jnp.where(jnp.isfinite(vb), vb, -jnp.inf)),
         efd_max=jnp.max(efd),
         exhausted=tr.exhausted,
         n_steps=tr.n_steps,

@@ -10,6 +10,8 @@ of one structure (`simulate_batch`), differentiable through the adaptive solver.
 
 from __future__ import annotations
 
+import math
+
 import diffrax as dfx
 import equinox as eqx
 import jax
@@ -17,6 +19,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Bool, Float
 
+from .._validate import ParameterError
 from .events import check_order, check_positions, switch_times
 from .loop import Case, Operating, evaluate, vector_field
 from .network import stage_configs, stage_matrices
@@ -115,6 +118,11 @@ def simulate_case(
     and no error control (the prior art's fixed-step integration, for comparison;
     switching times should then be multiples of `fixed_dt`)."""
     check_events(case, events)
+    if not (0 < dt_save <= t_end < math.inf):
+        raise ParameterError(
+            f"dt_save = {dt_save:g} s is not allowed: must lie in (0, t_end = "
+            f"{t_end:g} s] (a finite horizon sampled at least twice)"
+        )
     cfgs = stage_configs(op.grid, events)
     mats = stage_matrices(op.grid, cfgs)
     t_sw = switch_times(events)
