@@ -385,14 +385,15 @@ def read_raw(path) -> RawData:
             "supported (this reader reads PSS/E 32 and 33 raw files)"
         )
     if not (0 < head["SBASE"] < math.inf):
+        what = "is not positive" if not head["SBASE"] > 0 else "is not finite"
         raise PsseError(
-            f"{where}: case identification field SBASE: {head['SBASE']!r} is not "
-            "positive and finite"
+            f"{where}: case identification field SBASE: {head['SBASE']!r} {what}"
         )
     if not (0 <= head["BASFRQ"] < math.inf):
+        what = "is not positive" if not head["BASFRQ"] > 0 else "is not finite"
         raise PsseError(
-            f"{where}: case identification field BASFRQ: {head['BASFRQ']!r} is not "
-            "positive and finite (0: the default, 60 Hz)"
+            f"{where}: case identification field BASFRQ: {head['BASFRQ']!r} {what} "
+            "(0: the default, 60 Hz)"
         )
     title = tuple((lines[k].rstrip() if k < len(lines) else "") for k in (1, 2))
     raw = RawData(
