@@ -510,45 +510,42 @@ def _grid_distribution(case, args):
     return dist, n, chunk
 
 
-def grid_rows(case, op, dist, n, chunk, args, desc="scenarios"):
-    """The `GridMetrics` rows (field -> list) and the scenarios (fault bus or
-    branch position, fault and clearing times) of `n` scenarios drawn from `dist`
-    with seed `args.seed`, all drawn at once (the rows do not depend on --chunk; the
-    same scenarios for every parameter set of the same case), then run in chunks of
-    one size (the last padded by repeating its final scenario), so one program is
-    compiled: simulation and metrics are one compiled call per chunk."""
-    import jax
+def _grid_spec(dist, n, chunk, args):
+    """The `GridMonteCarloSpec` of the Monte Carlo options."""
+    from ..grid.montecarlo import GridMonteCarloSpec, json_ready
 
-    from .._commandline import progress_bars
-    from .._process import cache_state
-    from ..grid.metrics import GridMetrics, batch_metrics
-    from ..grid.scenarios import sample_events
-
-    events = sample_events(case.system, dist, n, args.seed)
-    run = batch_metrics(case, op, **_solver_kw(args))
-    rows = {k: [] for k in GridMetrics.FIELDS}
-    first = events[0]
-    meta = {
-        "bus": np.asarray(first.bus if hasattr(first, "bus") else first.branch),
-        "t_fault": np.asarray(first.t_on),
-        "t_clear": np.asarray(first.t_off),
-    }
-    meta = {k: v.tolist() for k, v in meta.items()}
-    print(
-        f"compiling the batched case simulator (cache: {cache_state('jit_grid_batch_metrics')})",
-        file=sys.stderr,
+    return GridMonteCarloSpec(
+        n=n,
+        seed=int(args.seed),
+        chunk=chunk,
+        t_end=float(args.t_end),
+        dt_save=float(args.dt_save),
+        rtol=float(args.rtol),
+        atol=float(args.atol),
+        distribution=json_ready(dataclasses.asdict(dist)),
     )
+
+
+def grid_rows(case, op, dist, n, chunk, args, desc="scenarios"):
+    """The rows (column -> array: scenario columns and `GridMetrics`) of `n`
+    scenarios drawn from `dist` with seed `args.seed`, all drawn at once (the rows
+    do not depend on --chunk; the same scenarios for every parameter set of the
+    same case), run in chunks through one compiled program
+    (`grid.montecarlo.chunk_runner`), in memory (compare --case)."""
+    from .._commandline import progress_bars, say_compiling
+    from ..grid.montecarlo import chunk_runner
+
+    spec = _grid_spec(dist, n, chunk, args)
+    compute = chunk_runner(case, op, spec)
+    say_compiling("the batched case simulator", "jit_grid_batch_metrics")
+    parts = []
     with progress_bars() as make:  # closed also when a chunk fails
         bar = make(total=n, desc=desc, unit="sc")
-        for start in range(0, n, chunk):
-            k = min(chunk, n - start)
-            idx = np.minimum(np.arange(start, start + chunk), n - 1)
-            ev = jax.tree_util.tree_map(lambda a, idx=idx: np.asarray(a)[idx], events)
-            m = run(ev)
-            for f in GridMetrics.FIELDS:
-                rows[f] += np.asarray(getattr(m, f))[:k].tolist()
-            bar.update(k)
-    return rows, meta
+        for k in range(spec.n_chunks):
+            parts.append(compute(k))
+            bar.update(len(parts[-1]["index"]))
+    rows = {c: np.concatenate([p[c] for p in parts]) for c in parts[0]}
+    return rows, spec
 
 
 def run_montecarlo(args) -> int:
@@ -560,7 +557,7 @@ def run_montecarlo(args) -> int:
     a run from the chunks on disk: the files are those of an uninterrupted run."""
     from .._commandline import out_path, progress_bars, say_compiling
     from .._files import check_out_folder
-    from ..grid.montecarlo import GridMonteCarloSpec, chunk_runner, json_ready
+    from ..grid.montecarlo import chunk_runner
 
     refuse_smib_flags(args)
     if args.resume and not args.out:
@@ -574,16 +571,7 @@ def run_montecarlo(args) -> int:
         )
     case, op, pf = load(args)
     dist, n, chunk = _grid_distribution(case, args)
-    spec = GridMonteCarloSpec(
-        n=n,
-        seed=int(args.seed),
-        chunk=chunk,
-        t_end=float(args.t_end),
-        dt_save=float(args.dt_save),
-        rtol=float(args.rtol),
-        atol=float(args.atol),
-        distribution=json_ready(dataclasses.asdict(dist)),
-    )
+    spec = _grid_spec(dist, n, chunk, args)
     context = {
         "case": case.name,
         "case_files": [str(args.case), str(args.dyr) if args.dyr else None],
