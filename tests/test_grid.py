@@ -15,7 +15,7 @@ from smibjax.grid.case import BUILTIN, CaseError, build_case, load_case
 from smibjax.grid.devices.gencls import GENCLS
 from smibjax.grid.events import BranchClose, BranchTrip, BusFault, GenTrip, LineFault
 from smibjax.grid.loop import Case, evaluate, initialize, state_labels, unpack
-from smibjax.grid.metrics import GridMetrics, _settling, grid_metrics
+from smibjax.grid.metrics import GridMetrics, grid_metrics, settling_time
 from smibjax.grid.network import stage_configs, stage_matrices
 from smibjax.grid.operating import check_islanding, operating_point
 from smibjax.grid.scenarios import (
@@ -505,7 +505,7 @@ def _coi_numpy(case, delta, on):
     return delta - (delta * w).sum(axis=-1, keepdims=True) / w.sum(axis=-1)[..., None]
 
 
-_settling_jit = jax.jit(_settling)
+_settling_jit = jax.jit(settling_time)
 
 
 def _bus7_fault(case):

@@ -33,7 +33,7 @@ from .events import switch_times
 from .loop import Case, Operating
 from .simulate import GridTrajectory, check_events, coi_angles, simulate_case
 
-__all__ = ["GridMetrics", "grid_metrics", "batch_metrics"]
+__all__ = ["GridMetrics", "grid_metrics", "batch_metrics", "settling_time", "WINDOW"]
 
 
 class GridMetrics(eqx.Module):
@@ -66,7 +66,7 @@ class GridMetrics(eqx.Module):
 WINDOW = 1.0  # s: how long a quantity must stay in its band before t_end
 
 
-def _settling(ts, err, band, t0, window):
+def settling_time(ts, err, band, t0, window):
     """Time (s) from t0 after which err (T, n) stays at or below band in every
     column, if it then stays there for at least the last `window` s; else inf."""
     out = jnp.any(err > band, axis=-1)
@@ -95,8 +95,12 @@ def grid_metrics(
     use = on & after[:, None]
     d_err = jnp.where(use, jnp.abs(rel - ref), 0.0)
     w_err = jnp.where(use, jnp.abs(jnp.nan_to_num(tr.omega)), 0.0)
-    s_a = jnp.where(ok, _settling(tr.ts, d_err, band_angle, t_first, window), jnp.inf)
-    s_w = jnp.where(ok, _settling(tr.ts, w_err, band_speed, t_first, window), jnp.inf)
+    s_a = jnp.where(
+        ok, settling_time(tr.ts, d_err, band_angle, t_first, window), jnp.inf
+    )
+    s_w = jnp.where(
+        ok, settling_time(tr.ts, w_err, band_speed, t_first, window), jnp.inf
+    )
     spread = jnp.max(jnp.where(on & valid[:, None], jnp.abs(rel), 0.0))
     vb = jnp.where(after[:, None], jnp.nan_to_num(tr.v_bus, nan=jnp.inf), jnp.inf)
     efd = jnp.where(on & valid[:, None], tr.efd, -jnp.inf)
