@@ -173,8 +173,8 @@ def test_montecarlo_on_a_case_writes_to_the_output_root_without_out(
     tmp_path, monkeypatch
 ):
     """Issue 32: `montecarlo --case` without --out computed and wrote nothing. It
-    writes a new folder runs/montecarlo-<time> like the SMIB's montecarlo: rows.csv
-    (one row per scenario) and summary.json (n, seed, stable fraction = the rows'
+    writes a new folder runs/montecarlo-<time> like the SMIB's montecarlo:
+    scenarios.csv (one row per scenario) and summary.json (n, seed, stable fraction = the rows'
     mean)."""
     import json
 
@@ -184,12 +184,12 @@ def test_montecarlo_on_a_case_writes_to_the_output_root_without_out(
     argv += ["--fault-times", "0.2:0.3", "--clear-after", "0.05:0.1", "--seed", "2"]
     assert main(argv) == 0
     (out,) = (tmp_path / "runs").glob("montecarlo-*")
-    lines = (out / "rows.csv").read_text().strip().splitlines()
+    lines = (out / "scenarios.csv").read_text().strip().splitlines()
     assert len(lines) == 1 + 3
     stable = [row.split(",")[lines[0].split(",").index("stable")] for row in lines[1:]]
     summary = json.loads((out / "summary.json").read_text())
-    assert (summary["n"], summary["seed"]) == (3, 2)
-    assert summary["stable_fraction"] == sum(s == "True" for s in stable) / 3
+    assert (summary["n"], summary["spec"]["seed"]) == (3, 2)
+    assert summary["stable_fraction"] == round(sum(s == "1" for s in stable) / 3, 6)
     assert main(argv) == 0  # a second run: a new folder, the first one kept
     assert len(list((tmp_path / "runs").glob("montecarlo-*"))) == 2
 
@@ -214,9 +214,10 @@ def test_montecarlo_on_a_case_rows_match_single_runs_and_not_the_chunk(tmp_path)
     for chunk in ("3", "5"):
         out = tmp_path / f"c{chunk}"
         assert main([*common, "--chunk", chunk, "--out", str(out)]) == 0
-        lines = (out / "rows.csv").read_text().strip().splitlines()
+        lines = (out / "scenarios.csv").read_text().strip().splitlines()
         head = lines[0].split(",")
-        assert head == ["bus_position", "t_fault", "t_clear", *GridMetrics.FIELDS]
+        scen = ["index", "fault_bus", "t_fault", "t_clear", "t_reclose"]
+        assert head == [*scen, "fault_r", "fault_x", *GridMetrics.FIELDS]
         tables.append([dict(zip(head, s.split(","), strict=True)) for s in lines[1:]])
     a, b = tables
     assert len(a) == len(b) == 5
@@ -233,9 +234,10 @@ def test_montecarlo_on_a_case_rows_match_single_runs_and_not_the_chunk(tmp_path)
         m = grid_metrics(case, tr, jnp.asarray(float(ev.t_on[i])))
         stable.append(bool(m.stable))
         for row in (a[i], b[i]):
-            assert int(row["bus_position"]) == int(ev.bus[i])
-            assert float(row["t_clear"]) == float(ev.t_off[i])
-            assert (row["stable"] == "True") == bool(m.stable)
+            # the PSS/E bus number (smib-gencls: position + 1), not the position
+            assert int(row["fault_bus"]) == int(ev.bus[i]) + 1
+            assert float(row["t_clear"]) == pytest.approx(float(ev.t_off[i]), rel=1e-9)
+            assert (row["stable"] == "1") == bool(m.stable)
             for f in ("max_spread", "v_min", "v_max", "efd_max"):
                 np.testing.assert_allclose(
                     float(row[f]), float(getattr(m, f)), rtol=1e-4, err_msg=f
@@ -365,3 +367,213 @@ def test_simulate_a_case_writes_the_format_its_out_suffix_names(
         dat = out.with_suffix(".dat").read_bytes().decode().split("\r\n")
         assert len([r for r in dat if r]) == 201
         assert all(len(r.split(",")) == 2 + n for r in dat if r)
+
+
+# --- issue 49: a flag a case cannot use, and a value a device cannot take, are one
+# line (exit 2, nothing written) whatever the entry --------------------------------
+
+_CASE = ["--case", "smib-gencls"]
+
+
+@pytest.mark.parametrize(
+    "argv, needle",
+    [
+        *(
+            (["simulate", *_CASE, "--fault-bus", "2", flag, value], f"{flag} is not")
+            for flag, value in (
+                ("--max-steps", "10"),
+                ("--max-steps", "50000"),  # given at its default: still refused
+                ("--controller", "asc"),
+                ("--preset", "realistic"),
+                ("--adaptation", "realizable"),
+                ("--phi-layer", "0.1"),
+            )
+        ),
+        (["simulate", *_CASE, "--fault-bus", "2", "--max-st", "9"], "--max-steps is"),
+        (["simulate", *_CASE, "--fault-bus", "2", "--reclose"], "without --fault-line"),
+        (
+            ["simulate", *_CASE, "--fault-bus", "2", "--reclose-time", "1"],
+            "--reclose-time is not allowed without --reclose",
+        ),
+        (["cct", *_CASE, "--criterion", "settled"], "--criterion is not allowed"),
+        (["cct", *_CASE, "--fault-reactance", "0.1"], "--fault-reactance is not"),
+        (["montecarlo", *_CASE, "--dist", "d.toml"], "--dist is not allowed"),
+        (["compare", *_CASE, "--scan-step", "0.1"], "--scan-step is not allowed"),
+        (
+            ["simulate", *_CASE, "--fault-bus", "2", "--fault-reactance", "nan"],
+            "--fault-reactance nan is not allowed",
+        ),
+        (
+            ["simulate", *_CASE, "--fault-bus", "2", "--param", "GENCLS.H=1e308"],
+            "GENCLS.H = ",
+        ),
+        (
+            ["simulate", *_CASE, "--fault-bus", "2", "--param", "GENCLS.H=-6.5"],
+            "must be > 0",
+        ),
+        (
+            ["simulate", *_CASE, "--fault-bus", "2", "--param", "GENCLS.xdp=0"],
+            "GENCLS.xdp = ",
+        ),
+        (
+            ["simulate", *_CASE, "--fault-bus", "2", "--param", "GENCLS.state_names=1"],
+            "GENCLS has no parameter 'state_names'",
+        ),
+    ],
+)
+def test_case_flags_and_values_are_refused_in_one_line(argv, needle, tmp_path, capsys):
+    out = tmp_path / "o"
+    assert main([*argv, "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err[-1].startswith("smibjax: error: ") and needle in err[-1], err
+    assert not out.exists()
+
+
+def test_input_files_that_were_tracebacks_are_one_line(tmp_path, capsys):
+    """Issue 49, classes 7 and 10: a 30-digit bus number in a raw file
+    (OverflowError), an unsupported dyr model under `modes` (25 lines), a generator
+    voltage set point of 0 (a power flow "not converged" with a NaN mismatch), a
+    `--dist` range written as a table (KeyError), a gains file's plant preset
+    written as a list (TypeError)."""
+    from smibjax.grid.case import case_files
+
+    raw, dyr = case_files("kundur-gencls")
+    big = tmp_path / "big.raw"
+    lines = raw.read_text().splitlines()
+    k = next(i for i, s in enumerate(lines) if s.lstrip().startswith("1,"))
+    lines[k] = "123456789012345678901234567890" + lines[k][lines[k].index(",") :]
+    big.write_text("\n".join(lines) + "\n")
+    vs0 = tmp_path / "vs0.raw"  # a generator's voltage set point 0: a NaN mismatch
+    g = next(i for i, s in enumerate(lines) if "GENERATOR DATA" in s) + 1
+    fields = raw.read_text().splitlines()[g].split(",")
+    fields[6] = " 0.0"
+    vs0.write_text(
+        "\n".join(
+            [
+                *raw.read_text().splitlines()[:g],
+                ",".join(fields),
+                *raw.read_text().splitlines()[g + 1 :],
+            ]
+        )
+        + "\n"
+    )
+    odd = tmp_path / "odd.dyr"
+    odd.write_text(dyr.read_text() + "     1 'WT3G1' 1 0 400 0.04 7.3 -7.3 1 /\n")
+    dist = tmp_path / "d.toml"
+    dist.write_text("t_fault = {lo = 0.5, hi = 1.0}\n")
+    gains = tmp_path / "g.toml"
+    gains.write_text(
+        'schema = "smibjax.gains/1"\ncontroller = "aftsc"\nadaptation = "oracle"\n'
+        '[plant]\npreset = ["paper"]\n[gains]\nk1 = 1.0\n'
+    )
+    for argv, needle in (
+        (
+            ["simulate", "--case", str(big), "--dyr", str(dyr), "--fault-bus", "7"],
+            "bus field I: 1.23456789012e+29 is not a bus number",
+        ),
+        (["modes", "--case", str(raw), "--dyr", str(odd)], "'WT3G1' is not supported"),
+        (
+            ["simulate", "--case", str(vs0), "--dyr", str(dyr), "--fault-bus", "7"],
+            "generator field VS: 0.0 is not a positive voltage set point",
+        ),
+        (["montecarlo", "--dist", str(dist), "--n", "2"], "must be a range [lo, hi]"),
+        (["simulate", "--gains", str(gains)], "plant preset = ['paper']"),
+    ):
+        assert main([*argv, "--out", str(tmp_path / "o")]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and err[0].startswith("smibjax: error: "), err
+        assert needle in err[0], err
+    assert not (tmp_path / "o").exists()
+
+
+# the grid Monte Carlo of the tests below: 6 scenarios in chunks of 3 at 2 s (the
+# batch program of the tests above)
+_MC = ["montecarlo", "--case", "smib-gencls", "--n", "6", "--chunk", "3"]
+_MC += ["--t-end", "2", "--fault-times", "0.2:0.3", "--clear-after", "0.1:1.2"]
+
+_KILLED = """
+import os, signal, sys
+import smibjax.cli.grid as g
+from smibjax.cli import main
+write = g._write_chunk
+def write_then_die(path, rows):
+    write(path, rows)
+    os.kill(os.getpid(), signal.SIGKILL)  # kill -9 after the first chunk
+g._write_chunk = write_then_die
+sys.exit(main(sys.argv[1:]))
+"""
+
+
+@CASE_BATCH
+def test_grid_montecarlo_killed_and_resumed_writes_the_uninterrupted_rows(tmp_path):
+    """Issue 49, class 4: a run killed with SIGKILL after its first chunk, then
+    `--resume`d, writes the rows of an uninterrupted run (before: nothing was
+    written until the end, and --resume ran everything again); the chunk on disk
+    is not recomputed."""
+    import os
+    import signal
+    import subprocess
+    import sys
+
+    killed, whole = tmp_path / "killed", tmp_path / "whole"
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)}
+    p = subprocess.run(
+        [sys.executable, "-c", _KILLED, *_MC, "--out", str(killed)],
+        env=env,
+        capture_output=True,
+        timeout=600,
+    )
+    assert p.returncode == -signal.SIGKILL, p.stderr.decode()[-2000:]
+    first = killed / "chunks" / "000000.npz"
+    assert first.is_file() and not (killed / "chunks" / "000001.npz").exists()
+    assert not (killed / "scenarios.csv").exists()
+    stamp = first.stat().st_mtime_ns
+    assert main([*_MC, "--out", str(killed)]) == 2  # not empty: resume or new folder
+    assert main([*_MC, "--out", str(killed), "--resume", "--seed", "1"]) == 2
+    assert main([*_MC, "--out", str(killed), "--resume"]) == 0
+    assert first.stat().st_mtime_ns == stamp
+    assert main([*_MC, "--out", str(whole)]) == 0
+    for name in ("scenarios.csv", "summary.md"):
+        assert (killed / name).read_text() == (whole / name).read_text()
+    assert main([*_MC, "--out", str(killed), "--resume"]) == 2  # complete
+
+
+@CASE_BATCH
+def test_grid_montecarlo_never_replaces_another_runs_output(tmp_path, monkeypatch):
+    """Two runs on one --out: a file another run put there while this one worked is
+    kept and this run refuses in one line (before: os.replace, the other run's
+    results silently lost)."""
+    import smibjax.cli.grid as g
+
+    out = tmp_path / "mc"
+    write = g._write_chunk
+
+    def other_run_meanwhile(path, rows):
+        write(path, rows)
+        (out / "scenarios.csv").write_text("the other run's rows\n")
+
+    monkeypatch.setattr(g, "_write_chunk", other_run_meanwhile)
+    assert main([*_MC, "--out", str(out)]) == 2
+    assert (out / "scenarios.csv").read_text() == "the other run's rows\n"
+
+
+def test_compare_summary_of_a_set_with_a_lost_run_has_no_nan():
+    """Issue 49, class 3: one unstable scenario made compare --case's overshoot mean
+    and p95 NaN. A lost run's overshoot is inf (`grid_metrics`), and the overshoot
+    figures are over the stable scenarios, as the settling figures."""
+    from smibjax.cli.grid import case_summary
+
+    rows = {
+        "stable": [True, True, False],
+        "settling_angle": [2.0, np.inf, np.inf],
+        "overshoot": [0.2, 0.4, np.inf],
+        "efd_max": [1.5, 1.6, 1.7],
+        "v_min": [0.0, 0.1, 0.2],
+        "exhausted": [False, False, False],
+    }
+    s = case_summary(rows)
+    assert s["overshoot_mean"] == pytest.approx(0.3)
+    assert s["overshoot_p95"] == pytest.approx(0.39)
+    assert s["settling_mean"] == 2.0 and s["stable_fraction"] == pytest.approx(2 / 3)
+    none = case_summary({**rows, "stable": [False] * 3})
+    assert none["overshoot_mean"] is None and none["settling_mean"] is None

@@ -6,6 +6,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from scipy.integrate import solve_ivp
 
 import smibjax as sj
@@ -13,7 +15,7 @@ from smibjax.grid.case import BUILTIN, CaseError, build_case, load_case
 from smibjax.grid.devices.gencls import GENCLS
 from smibjax.grid.events import BranchClose, BranchTrip, BusFault, GenTrip, LineFault
 from smibjax.grid.loop import Case, evaluate, initialize, state_labels, unpack
-from smibjax.grid.metrics import grid_metrics
+from smibjax.grid.metrics import GridMetrics, grid_metrics, settling_time
 from smibjax.grid.network import stage_configs, stage_matrices
 from smibjax.grid.operating import check_islanding, operating_point
 from smibjax.grid.scenarios import (
@@ -497,3 +499,193 @@ def test_a_line_fault_at_a_fraction_is_a_bus_fault_at_that_point():
         d = np.asarray(on_line.delta[:, 0]) - np.asarray(at_bus.delta[:, 0])
         assert np.max(np.abs(d)) < 1e-8
         assert np.ptp(np.asarray(at_bus.delta[:, 0])) > 0.3  # the fault moved it
+
+
+# --- verdicts that agree with the trajectory (issue 49, classes 1-3) ---------------
+
+
+def _coi_numpy(case, delta, on):
+    """Angles from the centre of inertia of the machines `on` (numpy, by hand)."""
+    h = np.zeros(case.n_gen)
+    for m, gt in zip(case.machines, case.layout.machine_gen, strict=True):
+        h[list(gt)] = np.asarray(m.H) * np.asarray(m.mbase)
+    w = h * on
+    return delta - (delta * w).sum(axis=-1, keepdims=True) / w.sum(axis=-1)[..., None]
+
+
+_settling_jit = jax.jit(settling_time)
+
+
+def _bus7_fault(case):
+    pos = int(np.flatnonzero(np.asarray(case.system.buses.number) == 7)[0])
+    return (BusFault(bus=pos, t_on=0.2, t_off=0.3),)
+
+
+def test_an_undamped_swing_is_not_settled_and_a_damped_one_settles_as_before(kundur):
+    """Kundur with classical machines and D = 0 keeps swinging: the settling time is
+    inf (before: the band about the last sample always "settled" just before t_end),
+    and so is every run that swings by more than twice the band in the last second.
+    With D = 50 the run settles where the old definition (band about the last
+    sample) put it, since the band is now about the operating point, which that run
+    reaches."""
+    from smibjax.grid.params import set_params
+
+    case, _ = kundur
+    band = 0.01
+    for d in (0.0, 50.0):
+        c = set_params(case, {"GENCLS.D": d})
+        op, _ = operating_point(c)
+        tr = simulate_jit(c, op, _bus7_fault(c), t_end=5.0, dt_save=0.02)
+        m = grid_metrics(c, tr, jnp.asarray(0.2), band_angle=band)
+        ts = np.asarray(tr.ts)
+        rel = _coi_numpy(c, np.asarray(tr.delta), np.ones(c.n_gen))
+        last = ts >= ts[-1] - 1.0
+        swing = np.max(np.ptp(rel[last], axis=0))
+        out = np.any(np.abs(rel - rel[-1]) > band, axis=1) & (ts >= 0.2)
+        old = ts[out].max() - 0.2
+        assert bool(m.stable)
+        if d == 0.0:
+            assert swing > 2 * band
+            assert float(m.settling_angle) == np.inf
+            assert old < 5.0 - 0.2  # the old definition was fooled
+        else:
+            assert swing < band
+            assert float(m.settling_angle) == pytest.approx(old, abs=0.021)
+            assert 1.0 < float(m.settling_angle) < 3.0
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    st.lists(st.floats(0, 0.05, allow_nan=False), min_size=31, max_size=31),
+    st.floats(0.0, 2.0),
+)
+def test_settling_is_inf_unless_the_band_holds_for_the_window(errs, t0):
+    """The settling rule itself: a finite time s means the error stays in the band
+    from t0 + s to t_end and for at least `window` s; inf otherwise."""
+    ts = np.linspace(0.0, 3.0, len(errs))
+    err = np.asarray(errs)[:, None]
+    band, window = 0.01, 1.0
+    s = float(_settling_jit(jnp.asarray(ts), jnp.asarray(err), band, t0, window))
+    if np.isfinite(s):
+        since = ts >= t0 + s
+        assert np.all(err[ts > t0 + s] <= band)
+        assert ts[-1] - (t0 + s) >= window - 1e-12
+        assert s >= 0 and since.any()
+    else:  # some excursion after t0 ends less than `window` s before t_end
+        last = max(t0, ts[np.any(err > band, axis=1)].max(initial=t0))
+        assert ts[-1] - last < window
+
+
+def test_a_tripped_machine_leaves_every_metric(kundur):
+    """A trip of G1: the largest |angle - COI| and the settling are those of the three
+    machines left (numpy COI over them, by hand), not of the frozen machine that the
+    others drift away from."""
+    case, op = kundur
+    # the options of the trip test above: one compiled program
+    tr = simulate_jit(case, op, (GenTrip(gen=0, t=0.1),), t_end=1.0, dt_save=0.05)
+    m = grid_metrics(case, tr, jnp.asarray(0.1))
+    ts = np.asarray(tr.ts)
+    on = np.ones((len(ts), case.n_gen))
+    on[ts >= 0.1, 0] = 0.0
+    np.testing.assert_array_equal(np.asarray(tr.gen_on), on)
+    rel = _coi_numpy(case, np.asarray(tr.delta), on)
+    assert float(m.max_spread) == pytest.approx(np.max(np.abs(rel) * on), rel=1e-9)
+    with_g1 = _coi_numpy(case, np.asarray(tr.delta), np.ones(case.n_gen))
+    assert np.max(np.abs(with_g1)) > 2 * float(m.max_spread)  # what it was before
+    assert float(m.max_spread) < np.pi and bool(m.stable)
+
+
+def test_a_tripped_machines_exciter_stops(tmp_path):
+    """The SMIB's machine with a SEXS exciter, tripped at 0.2 s: the exciter's states
+    freeze with the machine's (before: they integrated the error of a machine that
+    is out), and its field voltage leaves the peak-Efd figure."""
+    from smibjax.grid.case import case_files
+
+    raw, dyr = case_files("smib")
+    text = dyr.read_text() + "     1 'SEXS' 1   1.0  1.0  50.0  0.05  -5.0  5.0 /\n"
+    (tmp_path / "s.dyr").write_text(text)
+    case = load_case(raw, tmp_path / "s.dyr")
+    op, _ = operating_point(case)
+    ev = (GenTrip(gen=0, t=0.2),)
+    tr = simulate_jit(case, op, ev, t_end=1.0, dt_save=0.05)
+    labels = state_labels(case)
+    ys = np.asarray(tr.y_final)
+    k = [i for i, lab in enumerate(labels) if lab[0] == "SEXS"]
+    assert k and np.all(np.isfinite(ys[k]))
+    # nothing moves before the trip: the states at t_end are those at rest
+    np.testing.assert_allclose(ys[k], np.asarray(op.y0)[k], atol=1e-10)
+    m = grid_metrics(case, tr, jnp.asarray(0.2))
+    assert float(m.efd_max) == pytest.approx(float(np.max(np.asarray(tr.efd)[:4, 0])))
+
+
+def test_a_lost_run_has_no_nan_metric(smib_classical):
+    case, op = smib_classical
+    tr = simulate_jit(case, op, (BusFault(bus=0, t_on=0.5, t_off=1.2),), **OPTS)
+    m = grid_metrics(case, tr, jnp.asarray(0.5))
+    assert not bool(m.stable)
+    for f in GridMetrics.FIELDS:
+        assert not np.isnan(float(getattr(m, f))), f
+    assert float(m.overshoot) == np.inf
+
+
+def test_one_validation_path_for_devices_and_events(tmp_path):
+    """The checks a dyr file's values meet hold for the constructors and
+    `set_params` too, and events with concrete values are checked when built and,
+    for their positions, against the case before any tracing."""
+    from smibjax._validate import ParameterError
+    from smibjax.grid.case import case_files
+    from smibjax.grid.params import set_params
+    from smibjax.grid.psse import PsseError, read_raw
+
+    base = dict(gen=[0], mbase=[900.0], H=[6.5], D=[0.0], xdp=[0.3], ra=[0.0])
+    GENCLS(**base)
+    for field, value, needle in (
+        ("H", 1e308, r"GENCLS.H = \[1.e\+308\] is not allowed: must be finite"),
+        ("H", -6.5, r"GENCLS.H = \[-6.5\] is not allowed: must be > 0"),
+        ("xdp", 0.0, r"GENCLS.xdp = \[0.\] is not allowed: must be > 0"),
+        ("D", np.nan, r"GENCLS.D = \[nan\] is not allowed"),
+    ):
+        with pytest.raises(ParameterError, match=needle):
+            GENCLS(**{**base, field: [value]})
+    kundur_full = load_case("kundur")
+    for name, value, needle in (
+        ("GENROU[1:1].xd", -1.0, "GENROU.xd = "),
+        ("SEXS.EMAX", -10.0, "SEXS.EMAX = "),
+        ("GENROU.H", np.inf, "GENROU.H = "),
+    ):
+        with pytest.raises(ParameterError, match=needle):
+            set_params(kundur_full, {name: value})
+    for make, needle in (
+        (lambda: BusFault(bus=0, t_on=0.5, t_off=0.2), "BusFault.t_off = 0.2"),
+        (lambda: BusFault(bus=0, t_on=0.5, t_off=0.6, x=np.nan), "BusFault.x = nan"),
+        (lambda: BusFault(bus=-1, t_on=0.5, t_off=0.6), "BusFault.bus = -1"),
+        (lambda: LineFault(branch=0, frac=1.5, t_on=0, t_off=1), "frac = 1.5"),
+        (lambda: GenTrip(gen=0, t=np.inf), "GenTrip.t = inf"),
+        (lambda: BranchTrip(branch=0, t=-1.0), "BranchTrip.t = -1"),
+    ):
+        with pytest.raises(ParameterError, match=needle):
+            make()
+    case = load_case("smib-gencls")
+    op, _ = operating_point(case)
+    for ev, needle in (
+        (BusFault(bus=999, t_on=0.1, t_off=0.2), "BusFault.bus = 999 is not allowed"),
+        (GenTrip(gen=9, t=0.1), "GenTrip.gen = 9 is not allowed: must be a position"),
+    ):
+        with pytest.raises(ParameterError, match=needle):
+            simulate_jit(case, op, (ev,), t_end=1.0)
+    # a sampling coarser than the horizon left no sample after the fault (NaN
+    # voltages, a "settled" verdict from t = 0 alone)
+    with pytest.raises(ParameterError, match=r"dt_save = 2 s is not allowed"):
+        simulate_jit(
+            case, op, (BusFault(bus=1, t_on=0.1, t_off=0.2),), dt_save=2.0, t_end=1.0
+        )
+    raw, _ = case_files("kundur-gencls")
+    lines = raw.read_text().splitlines()
+    for value in ("-60", "nan"):
+        head = lines[0].split(",")
+        head[5] = (
+            " " + value + head[5][head[5].index("/") - 1 :] if "/" in head[5] else value
+        )
+        (tmp_path / "k.raw").write_text("\n".join([",".join(head), *lines[1:]]) + "\n")
+        with pytest.raises(PsseError, match="field BASFRQ"):
+            read_raw(tmp_path / "k.raw")

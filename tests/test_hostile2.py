@@ -545,41 +545,26 @@ def test_progress_bars_closes_every_bar_on_an_error(capsys):
 
 
 def test_case_montecarlo_failing_mid_run_prints_the_error_on_its_own_line(
-    monkeypatch, capsys
+    monkeypatch, capsys, tmp_path
 ):
     """`montecarlo --case`: the first chunk fails after the bar is drawn."""
     import types
 
     import smibjax.cli.grid as grid
-    import smibjax.grid.metrics as gm
-    import smibjax.grid.scenarios as gs
+    import smibjax.grid.montecarlo as gmc
     from smibjax.cli.options import CLIError
+    from smibjax.grid.scenarios import FaultDistribution
 
-    @jax.tree_util.register_pytree_node_class
-    class Events:  # what sample_events returns, reduced: indexable, a pytree
-        def __init__(self, *a):
-            self.bus, self.t_on, self.t_off = a
-
-        def __getitem__(self, i):
-            return self
-
-        def tree_flatten(self):
-            return (self.bus, self.t_on, self.t_off), None
-
-        @classmethod
-        def tree_unflatten(cls, aux, children):
-            return cls(*children)
-
-    def fail(ev):
+    def fail(k):
         raise CLIError("boom")
 
-    dist = types.SimpleNamespace(kind="bus")
-    case = types.SimpleNamespace(system=None)
+    monkeypatch.chdir(tmp_path)  # the default run folder runs/montecarlo-<time>
+    case = types.SimpleNamespace(system=None, name="kundur")
     monkeypatch.setattr(grid, "load", lambda a: (case, "op", "pf"))
+    dist = FaultDistribution()
     monkeypatch.setattr(grid, "_grid_distribution", lambda c, a: (dist, 4, 2))
     monkeypatch.setattr(grid, "_describe", lambda c, pf: "a case")
-    monkeypatch.setattr(gs, "sample_events", lambda *a: Events(*(np.zeros(4),) * 3))
-    monkeypatch.setattr(gm, "batch_metrics", lambda *a, **k: fail)
+    monkeypatch.setattr(gmc, "chunk_runner", lambda *a, **k: fail)
     assert main(["montecarlo", "--case", "kundur", "--n", "4"]) == 2
     err = capsys.readouterr().err
     assert "scenarios:" in err  # the bar was drawn
@@ -689,3 +674,22 @@ def test_tuner_failing_mid_run_prints_the_error_on_its_own_line(
     err = capsys.readouterr().err
     assert "tuning:" in err  # the bar was drawn
     _error_on_its_own_line(err)
+
+
+def test_compare_set_of_an_avr_pss_parameter_is_honoured(capsys):
+    """Issue 49, class 5: `compare --gains avr-pss --set K_A=0.0001` ran the
+    AVR-PSS at its own K_A (only the paper's law's gains were passed on). Each set
+    takes the --set values that are its controller's parameters; the paper's law
+    has no K_A and says so in one warning."""
+    from smibjax.cli.compare import _warn_dropped_sets, resolve_gain_set_context
+
+    sets = {"K_A": 1e-4, "k1": 2.0}
+    _, avr, ctx_avr, _ = resolve_gain_set_context("avr-pss", sets)
+    _, law, ctx_law, _ = resolve_gain_set_context("paper", sets)
+    assert float(avr.K_A) == 1e-4 and float(law.k1) == 2.0
+    _warn_dropped_sets("paper", ctx_law, sets)
+    _warn_dropped_sets("avr-pss", ctx_avr, sets)
+    err = capsys.readouterr().err.splitlines()
+    assert len(err) == 2
+    assert "--set K_A does not apply to set 'paper'" in err[0]
+    assert "--set k1 does not apply to set 'avr-pss'" in err[1]

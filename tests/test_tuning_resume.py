@@ -95,6 +95,10 @@ def test_first_difference():
     assert first_difference(a, b)[0] == "scenarios.t_fault"
     assert first_difference({"steps": 1}, {"steps": 1.0}) is None
     assert first_difference({"x": True}, {"x": 1}) == ("x", True, 1)
+    # the grid tuner's --resume was always refused: a flag equal to itself differed
+    # ("case.skip_unsupported = False differs from the run (... = False)")
+    assert first_difference({"x": False}, {"x": False}) is None
+    assert first_difference({"c": {"x": True}}, {"c": {"x": False}})[0] == "c.x"
 
 
 def test_start_mode(tmp_path, capsys):

@@ -185,7 +185,16 @@ def check_grid_config(cfg: dict) -> None:
         v = cfg[key]
         _req(isinstance(v, int) and not isinstance(v, bool), key, v, "an integer")
         _req(v >= lo, key, v, f"must be >= {lo}")
-    _req(isinstance(cfg["seed"], int), "seed", cfg["seed"], "must be an integer")
+    for key, val in (
+        ("seed", cfg["seed"]),
+        ("validation.seed", cfg["validation"]["seed"]),
+    ):
+        _req(
+            isinstance(val, int) and not isinstance(val, bool) and 0 <= val < 2**32,
+            key,
+            val,
+            "must be an integer in [0, 2^32 - 1]",
+        )
     g = cfg["gains"]
     _req(
         isinstance(g["names"], list)

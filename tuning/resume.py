@@ -53,9 +53,11 @@ def first_difference(saved, new, path: str = ""):
             return None
         return path, list(saved), list(new)
     same = saved == new and type(saved) is type(new)
-    if isinstance(saved, (int, float)) and isinstance(new, (int, float)):
-        same = not isinstance(saved, bool) and not isinstance(new, bool)
-        same = same and float(saved) == float(new)
+    numbers = (int, float)
+    if isinstance(saved, bool) or isinstance(new, bool):  # true == 1, but not alike
+        same = saved is new
+    elif isinstance(saved, numbers) and isinstance(new, numbers):
+        same = float(saved) == float(new)
     return None if same else (path, saved, new)
 
 

@@ -17,6 +17,7 @@ __all__ = [
     "Parser",
     "DefaultsFormatter",
     "one_line",
+    "given",
     "fresh_out",
     "out_path",
     "OUTPUT_ROOT",
@@ -111,6 +112,24 @@ bounded by +-`MAX_INT`."""
 PATH_FLAGS = {"--out", "--plot", "--csv", "--gains", "--dist", "--config", "--init"}
 """Flags naming a file or folder: an empty name is refused (`--out ''` would
 otherwise be the same as no --out)."""
+
+
+def given(args, flag: str) -> bool:
+    """Whether `flag` was written on the command line (`args.argv`, kept by
+    `cli.main`; argparse's unique prefixes count), whatever its value: a flag
+    given at its default value is still given."""
+    flags = getattr(args, "flags", set())
+    for token in getattr(args, "argv", ()):
+        if token == "--":
+            break
+        name = token.split("=", 1)[0]
+        if not name.startswith("--"):
+            continue
+        if name == flag or (
+            name not in flags and len(name) > 2 and flag.startswith(name)
+        ):
+            return True
+    return False
 
 
 def integer(flag: str, lo: int, hi):

@@ -189,7 +189,7 @@ def validate(data: dict, path=None) -> GainsFile:
     if not isinstance(plant_in, dict):
         raise ParameterError(f"plant{where} must be a table")
     preset = plant_in.get("preset", DEFAULTS["preset"])
-    if preset not in PRESETS:
+    if not isinstance(preset, str) or preset not in PRESETS:
         raise ParameterError(
             f"plant preset = {preset!r}{where} is not allowed: must be one of "
             f"{', '.join(PRESETS)}"

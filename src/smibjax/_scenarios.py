@@ -63,7 +63,7 @@ class FaultDistribution:
             lo_ok, hi_ok, what = allowed[f.name]
             try:
                 lo, hi = (float(r[0]), float(r[1])) if len(r) == 2 else (None, None)
-            except (TypeError, ValueError):
+            except (TypeError, ValueError, KeyError, IndexError):  # a table, ...
                 lo = hi = None
             if lo is None:
                 raise ParameterError(

@@ -72,6 +72,7 @@ def main(argv: list[str] | None = None) -> int:
     args = None
     try:
         args = _parser().parse_args(argv)
+        args.argv = list(sys.argv[1:] if argv is None else argv)  # for `given`
     except CLIError as e:
         print(f"smibjax: error: {e}", file=sys.stderr)
         return 2

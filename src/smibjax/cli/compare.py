@@ -66,14 +66,13 @@ def resolve_gain_set_context(
     from .._files import read_gains_file
     from .._gainsfile import resolve
     from .._parameters import ParameterError
-    from ..controllers.synergetic import GAIN_NAMES
 
-    sets = {k: v for k, v in (sets or {}).items() if k in GAIN_NAMES}
+    sets = sets or {}
     if spec in BUILTIN_SETS:
         controller, values = BUILTIN_SETS[spec]
         ctx, _, messages = resolve(None, controller, adaptation, preset)
-        sets = sets if ctx.controller in ("aftsc", "asc") else {}
-        return spec, _parameters(controller, {**values, **sets}), ctx, messages
+        mine = _own_sets(ctx.controller, sets)
+        return spec, _parameters(controller, {**values, **mine}), ctx, messages
     path = Path(spec)
     if not path.exists():
         raise ParameterError(
@@ -85,8 +84,18 @@ def resolve_gain_set_context(
         gf, None, adaptation, preset, source=f"--gains {spec}"
     )
     label = path.stem if path.stem != "gains" else path.parent.name or path.stem
-    sets = sets if ctx.controller in ("aftsc", "asc") else {}
-    return label, _parameters(ctx.controller, {**values, **sets}), ctx, messages
+    mine = _own_sets(ctx.controller, sets)
+    return label, _parameters(ctx.controller, {**values, **mine}), ctx, messages
+
+
+def _own_sets(controller: str, sets: dict) -> dict:
+    """The --set values that are parameters of `controller` (the paper's law's
+    gains for aftsc/asc, the AVR-PSS's K_A, T_A, ... for avr-pss); the others are
+    another controller's or the plant's (`_warn_dropped_sets` names them)."""
+    from ..controllers import CONTROLLERS
+
+    names = set(CONTROLLERS[controller].parameter_kinds())
+    return {k: v for k, v in sets.items() if k in names}
 
 
 def _stated_context(spec: str):
@@ -220,16 +229,14 @@ def _warn_dropped_sets(label: str, ctx: Context, sets: dict) -> None:
     """One warning line per --set gain that a set's controller does not take (it
     would otherwise be dropped silently)."""
     from ..controllers import CONTROLLERS
-    from ..controllers.synergetic import GAIN_NAMES
 
     names = set(CONTROLLERS[ctx.controller].parameter_kinds())
+    anyone = {n for c in CONTROLLERS.values() for n in c.parameter_kinds()}
     for name in sets:
-        if name in GAIN_NAMES and (
-            ctx.controller not in ("aftsc", "asc") or name not in names
-        ):
+        if name in anyone and name not in names:
             print(
                 f"smibjax: warning: --set {name} does not apply to set {label!r} "
-                f"(controller {ctx.controller} has no gain {name}): ignored there",
+                f"(controller {ctx.controller} has no parameter {name}): ignored there",
                 file=sys.stderr,
             )
 

@@ -10,6 +10,7 @@ along the line, cleared by opening it at --clear-time; `--reclose` recloses it a
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 import re
@@ -196,6 +197,72 @@ def _params(items) -> dict:
     return out
 
 
+_SMIB_FLAGS = (
+    "--set",
+    "--gains",
+    "--controller",
+    "--preset",
+    "--adaptation",
+    "--max-steps",
+    "--phi-layer",
+)
+SMIB_ONLY = {
+    "simulate": _SMIB_FLAGS,
+    "montecarlo": (*_SMIB_FLAGS, "--dist", "--scheduler", "--workers"),
+    "cct": (
+        *_SMIB_FLAGS,
+        "--fault-location",
+        "--fault-reactance",
+        "--reclose-time",
+        "--scan-step",
+        "--criterion",
+    ),
+    "compare": (
+        *_SMIB_FLAGS,
+        "--resume",
+        "--dist",
+        "--scheduler",
+        "--workers",
+        "--fault-location",
+        "--reclose-time",
+        "--scan-step",
+    ),
+}
+"""Per command, the flags of the paper's SMIB that a --case run has no use for: each
+is refused when given (at any value), never ignored."""
+
+
+def refuse_smib_flags(args) -> None:
+    """CLIError (one line) for a flag of `SMIB_ONLY` given with --case, or a flag
+    given without the flag it qualifies (`simulate --reclose` without
+    --fault-line, --reclose-time without --reclose, --fault-location without
+    --fault-line)."""
+    from .._commandline import given
+
+    for flag in SMIB_ONLY.get(getattr(args, "command", ""), _SMIB_FLAGS):
+        if given(args, flag):
+            hint = (
+                "a case's parameters take --param MODEL.PARAM=VALUE"
+                if flag in ("--set", "--gains", "--preset", "--adaptation")
+                else "a case's devices come from its dyr file"
+                if flag in ("--controller", "--phi-layer")
+                else "it has no meaning for a case"
+            )
+            raise CLIError(
+                f"{flag} is not allowed with --case: it is an option of the paper's "
+                f"SMIB; {hint}"
+            )
+    if getattr(args, "command", "") == "simulate":
+        needs = (
+            ("--reclose", "--fault-line", bool(args.fault_line)),
+            ("--reclose-time", "--reclose", bool(args.reclose)),
+            ("--fault-location", "--fault-line", bool(args.fault_line)),
+        )
+        for flag, needed, have in needs:
+            if given(args, flag) and not have:
+                raise CLIError(f"{flag} is not allowed without {needed} on a case")
+
+
 def load(args):
     """(case, operating point, power flow) from the arguments; CLIError on bad
     input (one line)."""
@@ -205,16 +272,7 @@ def load(args):
     from ..grid.powerflow import PowerFlowError
     from ..grid.psse import PsseError
 
-    for flag, value in (
-        ("--set", getattr(args, "set", None)),
-        ("--gains", getattr(args, "gains", None)),
-    ):
-        if value:
-            raise CLIError(
-                f"{flag} is not allowed with --case: it sets the paper's SMIB "
-                "controller or plant; a case's parameters take --param "
-                "MODEL.PARAM=VALUE"
-            )
+    refuse_smib_flags(args)
     if (
         args.dyr
         and not str(args.case).endswith(".raw")
@@ -251,8 +309,11 @@ def events_from_args(case, args) -> tuple:
             f"--fault-time {t_on} and --clear-time {t_off} must satisfy 0 <= fault < "
             f"clear < --t-end {args.t_end}"
         )
-    if args.fault_reactance < 0:
-        raise CLIError(f"--fault-reactance {args.fault_reactance} must be >= 0")
+    if not 0 <= args.fault_reactance < math.inf:
+        raise CLIError(
+            f"--fault-reactance {args.fault_reactance} is not allowed: must be finite "
+            "and >= 0 (pu)"
+        )
     ev = []
     try:
         if args.fault_bus is not None:
@@ -625,95 +686,259 @@ def _grid_distribution(case, args):
     return dist, n, _chunk_that_fits(case, one, args, chunk)
 
 
-def grid_rows(case, op, dist, n, chunk, args, desc="scenarios"):
-    """The `GridMetrics` rows (field -> list) and the scenarios (fault bus or
-    branch position, fault and clearing times) of `n` scenarios drawn from `dist`
-    with seed `args.seed`, all drawn at once (the rows do not depend on --chunk; the
-    same scenarios for every parameter set of the same case), then run in chunks of
-    one size (the last padded by repeating its final scenario), so one program is
-    compiled: simulation and metrics are one compiled call per chunk."""
-    import jax
+def _grid_spec(dist, n, chunk, args):
+    """The `GridMonteCarloSpec` of the Monte Carlo options."""
+    from ..grid.montecarlo import GridMonteCarloSpec, json_ready
 
-    from .._commandline import progress_bars
-    from .._process import cache_state
-    from ..grid.metrics import GridMetrics, batch_metrics
-    from ..grid.scenarios import sample_events
-
-    events = sample_events(case.system, dist, n, args.seed)
-    run = batch_metrics(case, op, **_solver_kw(args))
-    rows = {k: [] for k in GridMetrics.FIELDS}
-    first = events[0]
-    meta = {
-        "bus": np.asarray(first.bus if hasattr(first, "bus") else first.branch),
-        "t_fault": np.asarray(first.t_on),
-        "t_clear": np.asarray(first.t_off),
-    }
-    meta = {k: v.tolist() for k, v in meta.items()}
-    print(
-        f"compiling the batched case simulator (cache: {cache_state('jit_grid_batch_metrics')})",
-        file=sys.stderr,
+    return GridMonteCarloSpec(
+        n=n,
+        seed=int(args.seed),
+        chunk=chunk,
+        t_end=float(args.t_end),
+        dt_save=float(args.dt_save),
+        rtol=float(args.rtol),
+        atol=float(args.atol),
+        distribution=json_ready(dataclasses.asdict(dist)),
     )
+
+
+def grid_rows(case, op, dist, n, chunk, args, desc="scenarios"):
+    """The rows (column -> array: scenario columns and `GridMetrics`) of `n`
+    scenarios drawn from `dist` with seed `args.seed`, all drawn at once (the rows
+    do not depend on --chunk; the same scenarios for every parameter set of the
+    same case), run in chunks through one compiled program
+    (`grid.montecarlo.chunk_runner`), in memory (compare --case)."""
+    from .._commandline import progress_bars, say_compiling
+    from ..grid.montecarlo import chunk_runner
+
+    spec = _grid_spec(dist, n, chunk, args)
+    compute = chunk_runner(case, op, spec)
+    say_compiling("the batched case simulator", "jit_grid_batch_metrics")
+    parts = []
     with progress_bars() as make:  # closed also when a chunk fails
         bar = make(total=n, desc=desc, unit="sc")
-        for start in range(0, n, chunk):
-            k = min(chunk, n - start)
-            idx = np.minimum(np.arange(start, start + chunk), n - 1)
-            ev = jax.tree_util.tree_map(lambda a, idx=idx: np.asarray(a)[idx], events)
-            m = run(ev)
-            for f in GridMetrics.FIELDS:
-                rows[f] += np.asarray(getattr(m, f))[:k].tolist()
-            bar.update(k)
-    return rows, meta
+        for k in range(spec.n_chunks):
+            parts.append(compute(k))
+            bar.update(len(parts[-1]["index"]))
+    rows = {c: np.concatenate([p[c] for p in parts]) for c in parts[0]}
+    return rows, spec
 
 
 def run_montecarlo(args) -> int:
-    """`montecarlo --case`: fault scenarios drawn over buses or lines; rows.csv,
-    summary.json in --out (default: a new folder runs/montecarlo-<time>, as the
-    SMIB's montecarlo)."""
-    from .._commandline import out_path
-    from .._files import check_out_folder, write_json, write_text
-    from ..grid.metrics import GridMetrics
+    """`montecarlo --case`: fault scenarios drawn over buses or lines
+    (`smibjax.grid.montecarlo`), run in chunks into the run folder --out (default:
+    a new folder runs/montecarlo-<time>, as the SMIB's montecarlo): run.json (what
+    the run computes and its context), chunks/NNNNNN.npz (each the moment it is
+    computed), then scenarios.csv, summary.json and summary.md. `--resume` finishes
+    a run from the chunks on disk: the files are those of an uninterrupted run."""
+    from .._commandline import out_path, progress_bars, say_compiling
+    from .._files import check_out_folder
+    from ..grid.montecarlo import chunk_runner
 
+    refuse_smib_flags(args)
+    if args.resume and not args.out:
+        raise CLIError("--resume needs --out DIR (the folder of the run to finish)")
     out = out_path(args.out, "montecarlo")
     check_out_folder(out)  # before any work
-    if out.exists() and any(out.iterdir()) and not getattr(args, "force", False):
-        raise CLIError(f"--out {out}: the folder is not empty (use --force)")
+    if not args.resume and out.exists() and (not out.is_dir() or any(out.iterdir())):
+        raise CLIError(
+            f"--out {str(out)!r} exists and is not empty: choose a new folder or add "
+            "--resume to finish the run in it"
+        )
     case, op, pf = load(args)
     dist, n, chunk = _grid_distribution(case, args)
-    print(_describe(case, pf), file=sys.stderr)
-    t0 = time.perf_counter()
-    rows, meta = grid_rows(case, op, dist, n, chunk, args)
-    wall = time.perf_counter() - t0
-    st = np.asarray(rows["stable"], dtype=bool)
-    settle = np.asarray(rows["settling_angle"], dtype=float)
-    fin = settle[st & np.isfinite(settle)]
-    summary = {
+    spec = _grid_spec(dist, n, chunk, args)
+    context = {
         "case": case.name,
-        "n": n,
-        "seed": args.seed,
-        "stable_fraction": float(st.mean()),
-        "settling_mean": float(fin.mean()) if fin.size else None,
-        "settling_p95": float(np.percentile(fin, 95)) if fin.size else None,
-        "exhausted": int(np.sum(rows["exhausted"])),
-        "seconds": wall,
-        "distribution": {k: v for k, v in dist.__dict__.items()},
+        "case_files": [str(args.case), str(args.dyr) if args.dyr else None],
+        "skip_unsupported": bool(args.skip_unsupported),
+        "params": _params(args.param),
+        "load_factor": float(args.load_factor),
     }
+    manifest = {"spec": spec.to_dict(), "context": context, "complete": False}
+    if args.resume:
+        _check_grid_resume(out, manifest)
+    else:
+        _write_new(out / "run.json", json.dumps(manifest, indent=2) + "\n")
+    print(_describe(case, pf), file=sys.stderr)
+    todo = [k for k in range(spec.n_chunks) if not _grid_chunk_ok(out, spec, k)]
+    t0 = time.perf_counter()
+    if todo:
+        compute = chunk_runner(case, op, spec)
+        say_compiling("the batched case simulator", "jit_grid_batch_metrics")
+        done = spec.n - sum(
+            spec.chunk_range(k)[1] - spec.chunk_range(k)[0] for k in todo
+        )
+        with progress_bars() as make:  # closed also when a chunk fails
+            bar = make(total=n, initial=done, desc="scenarios", unit="sc")
+            for k in todo:
+                rows = compute(k)
+                _write_chunk(_grid_chunk_path(out, k), rows)
+                bar.update(len(rows["index"]))
+    wall = time.perf_counter() - t0
+    rows, summary = _grid_finish(out, spec, context, manifest)
     print(
-        f"{n} scenarios in {wall:.1f} s: stable {summary['stable_fraction']:.3f}, "
-        f"settling mean {summary['settling_mean']} s"
+        f"{n} scenarios ({len(todo)} of {spec.n_chunks} chunks computed now, "
+        f"{wall:.1f} s): stable {summary['stable_fraction']}, settling mean "
+        f"{summary['settling_angle_s']['mean']} s"
     )
-    out.mkdir(parents=True, exist_ok=True)
-    where_name = "bus_position" if dist.kind == "bus" else "branch_position"
-    cols = [where_name, "t_fault", "t_clear", *GridMetrics.FIELDS]
-    lines = [",".join(cols)]
-    for i in range(n):
-        vals = [meta["bus"][i], meta["t_fault"][i], meta["t_clear"][i]]
-        vals += [rows[f][i] for f in GridMetrics.FIELDS]
-        lines.append(",".join(str(v) for v in vals))
-    write_text(out / "rows.csv", "\n".join(lines) + "\n")
-    write_json(out / "summary.json", summary)
-    print(f"wrote {out}/rows.csv, {out}/summary.json")
+    print(f"wrote {out}/scenarios.csv, summary.json, summary.md")
     return 0
+
+
+def _write_chunk(path: Path, rows: dict) -> None:
+    """A computed chunk, atomically (a kill leaves it whole or absent)."""
+    from .._files import write_npz
+
+    write_npz(path, rows)
+
+
+def _grid_chunk_path(out: Path, k: int) -> Path:
+    return out / "chunks" / f"{k:06d}.npz"
+
+
+def _grid_chunk_ok(out: Path, spec, k: int) -> bool:
+    """Chunk k is on disk and whole (it loads and holds its scenario range in every
+    column); one that is not is recomputed."""
+    from ..grid.montecarlo import METRIC_COLUMNS
+
+    path = _grid_chunk_path(out, k)
+    if not path.is_file():
+        return False
+    start, stop = spec.chunk_range(k)
+    try:
+        with np.load(path) as z:
+            cols = {c: np.asarray(z[c]) for c in z.files}
+    except Exception:  # a truncated zip raises BadZipFile, EOFError, ValueError...
+        return False
+    must = ("index", "t_fault", "t_clear", *METRIC_COLUMNS)
+    return all(
+        c in cols and cols[c].shape == (stop - start,) for c in must
+    ) and np.array_equal(cols["index"], np.arange(start, stop))
+
+
+def _check_grid_resume(out: Path, manifest: dict) -> None:
+    """CLIError (one line) unless `out` holds an unfinished run of the same spec and
+    context."""
+    path = out / "run.json"
+    try:
+        saved = json.loads(path.read_text(encoding="utf-8"))
+        if not isinstance(saved, dict) or "spec" not in saved:
+            raise ValueError("not a grid Monte Carlo run")
+    except FileNotFoundError:
+        raise CLIError(
+            f"--resume: {str(out)!r} holds no Monte Carlo run (no run.json)"
+        ) from None
+    except (ValueError, UnicodeDecodeError) as e:
+        reason = str(e).splitlines()[0][:80] if str(e) else type(e).__name__
+        raise CLIError(
+            f"--resume: {str(path)!r} is damaged ({reason}): start a new run in a "
+            "new --out folder"
+        ) from None
+    if saved.get("complete"):
+        raise CLIError(f"--resume: the run in {str(out)!r} is complete")
+    old, new = _flat(saved), _flat(json.loads(json.dumps(manifest)))
+    for key in new:
+        if key != "complete" and old.get(key, "(absent)") != new[key]:
+            raise CLIError(
+                f"--resume: {key} = {new[key]!r} differs from the run in "
+                f"{str(out)!r} ({key} = {old.get(key, '(absent)')!r}); repeat its "
+                "options"
+            )
+
+
+def _flat(d: dict, head: str = "") -> dict:
+    """A nested table as dotted keys."""
+    out = {}
+    for k, v in d.items():
+        key = f"{head}.{k}" if head else str(k)
+        if isinstance(v, dict):
+            out.update(_flat(v, key))
+        else:
+            out[key] = v
+    return out
+
+
+def _write_new(path: Path, text: str) -> None:
+    """Write a new file atomically, put in place with a hard link: refused (one
+    line) if `path` exists by then (another run on the same --out), never replaced."""
+    from .._files import atomic_write
+
+    def w(tmp):
+        with open(tmp, "w", encoding="utf-8") as fh:
+            fh.write(text)
+
+    atomic_write(path, w, new=True)
+
+
+def _csv_cell(v) -> str:
+    if isinstance(v, str | np.str_):
+        return str(v)
+    if isinstance(v, bool | np.bool_):
+        return str(int(v))
+    if isinstance(v, int | np.integer):
+        return str(int(v))
+    return f"{float(v):.10g}"
+
+
+def _grid_summary_md(summary: dict, spec, context: dict) -> str:
+    lines = [
+        f"# Monte Carlo: {context['case']}",
+        "",
+        f"{spec.n} scenarios (seed {spec.seed}), t_end {spec.t_end:g} s, dt_save "
+        f"{spec.dt_save:g} s, rtol {spec.rtol:g}, atol {spec.atol:g}, load factor "
+        f"{context['load_factor']:g}, parameters "
+        + (
+            ", ".join(f"{k} = {v:g}" for k, v in context["params"].items())
+            or "the case's"
+        )
+        + ".",
+        "",
+        "| figure | value |",
+        "|---|---|",
+    ]
+    for k, v in summary.items():
+        if k in ("context", "spec"):
+            continue
+        if isinstance(v, dict):
+            v = ", ".join(f"{q} {x}" for q, x in v.items())
+        lines.append(f"| {k} | {v} |")
+    return "\n".join(lines) + "\n"
+
+
+def _grid_finish(out: Path, spec, context: dict, manifest: dict):
+    """Assemble the chunks into scenarios.csv, summary.json and summary.md (new
+    files, hard-linked), then mark run.json complete."""
+    from .._files import write_json
+    from ..grid.montecarlo import summarize
+
+    parts = []
+    for k in range(spec.n_chunks):
+        with np.load(_grid_chunk_path(out, k)) as z:
+            parts.append({c: np.asarray(z[c]) for c in z.files})
+    cols = list(parts[0])
+    rows = {c: np.concatenate([p[c] for p in parts]) for c in cols}
+    lines = [",".join(cols)]
+    lines += [
+        ",".join(_csv_cell(rows[c][i]) for c in cols) for i in range(len(rows["index"]))
+    ]
+    summary = summarize(rows) | {"spec": spec.to_dict(), "context": context}
+    _write_new(out / "scenarios.csv", "\n".join(lines) + "\n")
+    _write_new(out / "summary.json", json.dumps(_clean(summary), indent=2) + "\n")
+    _write_new(out / "summary.md", _grid_summary_md(summary, spec, context))
+    write_json(out / "run.json", manifest | {"complete": True})
+    return rows, summary
+
+
+def _clean(o):
+    """inf and NaN as strings (JSON has neither)."""
+    if isinstance(o, float) and not math.isfinite(o):
+        return str(o)
+    if isinstance(o, dict):
+        return {k: _clean(v) for k, v in o.items()}
+    if isinstance(o, list | tuple):
+        return [_clean(v) for v in o]
+    return o
 
 
 def _int_list(text):
@@ -867,13 +1092,14 @@ def case_sets(args) -> dict[str, list[str]]:
 
 def case_summary(rows: dict) -> dict:
     """A `compare --case` row: stable fraction, settling of the COI angles (s;
-    mean and p95 over the stable scenarios), overshoot (rad; mean and p95), the
+    mean and p95 over the stable scenarios that settle), overshoot (rad; mean and
+    p95 over the stable scenarios; a lost run has none), the
     largest field voltage (pu), the lowest bus voltage (pu), runs that spent the
     solver's step budget."""
     st = np.asarray(rows["stable"], dtype=bool)
     ts = np.asarray(rows["settling_angle"], dtype=float)[st]
     ts = ts[np.isfinite(ts)]
-    ov = np.asarray(rows["overshoot"], dtype=float)
+    ov = np.asarray(rows["overshoot"], dtype=float)[st]  # inf where lost
 
     def q(a, p):
         return float(np.percentile(a, p)) if a.size else None
@@ -883,7 +1109,7 @@ def case_summary(rows: dict) -> dict:
         "stable_fraction": float(st.mean()),
         "settling_mean": float(ts.mean()) if ts.size else None,
         "settling_p95": q(ts, 95),
-        "overshoot_mean": float(ov.mean()),
+        "overshoot_mean": float(ov.mean()) if ov.size else None,
         "overshoot_p95": q(ov, 95),
         "efd_peak": float(np.max(rows["efd_max"])),
         "v_min": float(np.min(rows["v_min"])),
@@ -1008,6 +1234,7 @@ def run_compare(args) -> int:
     from .._files import write_json, write_text
     from .compare import output
 
+    refuse_smib_flags(args)
     sets = case_sets(args)
     out = output(args)
     from .._files import check_out_folder

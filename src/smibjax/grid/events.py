@@ -20,6 +20,7 @@ import numpy as np
 from jaxtyping import Array, Float, Int
 
 from .._errors import ParameterError
+from .._validate import is_concrete, require
 
 __all__ = [
     "BusFault",
@@ -30,6 +31,7 @@ __all__ = [
     "Event",
     "switch_times",
     "check_order",
+    "check_positions",
 ]
 
 Scalar = Float[Array, ""]
@@ -43,6 +45,28 @@ def _i(x):
     return jnp.asarray(x, dtype=jnp.int32)
 
 
+def _check(ev, position: str, times=(), impedance=False) -> None:
+    """`ParameterError` (one line) for concrete fields out of range: a negative
+    position, a time that is not finite and >= 0, times out of order (`times` in
+    their order), a fault impedance that is not finite and >= 0."""
+    name = type(ev).__name__
+    fields = [position, *times] + (["r", "x"] if impedance else [])
+    vals = [getattr(ev, f) for f in fields]
+    if not is_concrete(*vals):
+        return
+    v = {f: np.asarray(a) for f, a in zip(fields, vals, strict=True)}
+    require(v[position] >= 0, name, position, v[position], "must be >= 0 (a position)")
+    for f in times:
+        require(np.isfinite(v[f]) & (v[f] >= 0), name, f, v[f], "must be finite, >= 0")
+    for a, b in zip(times, times[1:], strict=False):
+        require(v[b] >= v[a], name, b, v[b], f"must be >= {a} = {{}}", v[a])
+    if impedance:
+        for f in ("r", "x"):
+            require(
+                np.isfinite(v[f]) & (v[f] >= 0), name, f, v[f], "must be finite, >= 0"
+            )
+
+
 class BusFault(eqx.Module):
     """A three-phase fault at bus position `bus` from `t_on` to `t_off` (s) through
     the impedance r + j x (pu, system base); r = x = 0 is a bolted fault (the bus
@@ -53,6 +77,9 @@ class BusFault(eqx.Module):
     t_off: Scalar = eqx.field(converter=_f)
     r: Scalar = eqx.field(converter=_f, default=0.0)
     x: Scalar = eqx.field(converter=_f, default=0.0)
+
+    def __check_init__(self):
+        _check(self, "bus", ("t_on", "t_off"), impedance=True)
 
     def switches(self):
         return (self.t_on, self.t_off)
@@ -73,6 +100,12 @@ class LineFault(eqx.Module):
     r: Scalar = eqx.field(converter=_f, default=0.0)
     x: Scalar = eqx.field(converter=_f, default=0.0)
 
+    def __check_init__(self):
+        _check(self, "branch", ("t_on", "t_off"), impedance=True)
+        if is_concrete(self.frac):
+            f = np.asarray(self.frac)
+            require((f > 0) & (f < 1), "LineFault", "frac", f, "must lie in (0, 1)")
+
     def switches(self):
         return (self.t_on, self.t_off)
 
@@ -82,6 +115,9 @@ class BranchTrip(eqx.Module):
 
     branch: Int[Array, ""] = eqx.field(converter=_i)
     t: Scalar = eqx.field(converter=_f)
+
+    def __check_init__(self):
+        _check(self, "branch", ("t",))
 
     def switches(self):
         return (self.t,)
@@ -93,6 +129,9 @@ class BranchClose(eqx.Module):
     branch: Int[Array, ""] = eqx.field(converter=_i)
     t: Scalar = eqx.field(converter=_f)
 
+    def __check_init__(self):
+        _check(self, "branch", ("t",))
+
     def switches(self):
         return (self.t,)
 
@@ -103,6 +142,9 @@ class GenTrip(eqx.Module):
 
     gen: Int[Array, ""] = eqx.field(converter=_i)
     t: Scalar = eqx.field(converter=_f)
+
+    def __check_init__(self):
+        _check(self, "gen", ("t",))
 
     def switches(self):
         return (self.t,)
@@ -120,15 +162,42 @@ def switch_times(events) -> Float[Array, " n_switch"]:
 
 
 def check_order(events) -> None:
-    """ValueError (one line) if concrete switch times are out of order or negative."""
+    """ValueError (one line) if concrete switch times are out of order or negative
+    (for a batch of scenarios, in any scenario)."""
     try:
         ts = np.asarray(switch_times(events))
     except Exception:  # traced: nothing to check
         return
+    # (n_switch,) or, for a batch of scenarios, (n_switch, batch)
     if ts.size and (
-        np.any(np.diff(ts) < 0) or ts[0] < 0 or not np.all(np.isfinite(ts))
+        np.any(np.diff(ts, axis=0) < 0)
+        or np.any(ts[0] < 0)
+        or not np.all(np.isfinite(ts))
     ):
         raise ParameterError(
             f"event times {ts.tolist()} must be finite, >= 0 and in the order the "
             "events are listed"
         )
+
+
+def check_positions(events, n_bus: int, n_branch: int, n_gen: int) -> None:
+    """`ParameterError` (one line) if a concrete position is past the case's buses,
+    branches or generators (positions are 0-based; the command line takes PSS/E
+    numbers)."""
+    for e in events:
+        for field, n, what in (
+            ("bus", n_bus, "buses"),
+            ("branch", n_branch, "branches"),
+            ("gen", n_gen, "generators"),
+        ):
+            if not hasattr(e, field):
+                continue
+            p = getattr(e, field)
+            if is_concrete(p):
+                require(
+                    np.asarray(p) < n,
+                    type(e).__name__,
+                    field,
+                    np.asarray(p),
+                    f"must be a position < {n} (the case has {n} {what})",
+                )

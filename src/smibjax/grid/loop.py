@@ -12,6 +12,8 @@ Evaluation order in the vector field, per right-hand-side call:
    compensators (write "Vc", the voltage the exciters regulate; Vt where there is
    none) come first;
 5. the machines' and controllers' derivatives; the SVCs' from their bus voltages.
+   A tripped machine (generator status 0) injects nothing and its states and its
+   controllers' states freeze.
 Commands no controller writes stay at their operating-point values (`held`).
 """
 
@@ -347,7 +349,8 @@ def evaluate(case: Case, op: Operating, mats: StageMatrices, stage, y, u=None):
             "Efd_cmd": efd_cmd,
         }
         cmd[ctl.output] = cmd[ctl.output].at[g].set(ctl.out(x, local, ref))
-        dctrl[i] = ctl.rhs(x, local, ref)
+        d = ctl.rhs(x, local, ref)  # (n_states, k); a tripped machine's stop:
+        dctrl[i] = (jnp.reshape(d, (-1, len(g))) * gst[g]).reshape(jnp.shape(d))
     dm = []
     for k, (m, x, h, vt) in enumerate(
         zip(case.machines, xm, op.held, vgen, strict=True)

@@ -3,15 +3,23 @@
 Stability: no machine's angle departs from the centre of inertia (COI; the
 synchronous frame where the case has an infinite bus) by more than pi within the
 horizon (ANDES's criterion is a 180 degree spread between machines, which is at most
-twice ours). Settling and overshoot are of the COI-referred angles and of the speeds,
-from the first event:
+twice ours). A tripped machine leaves the COI and every metric from its trip.
+Settling and overshoot are of the COI-referred angles and of the speeds, from the
+first event, about a *reference*: the post-disturbance equilibrium where it is
+known (the operating point when the network at t_end is the one before the events:
+faults cleared, branches reclosed), else the last sample:
 - `settling_angle`: the time from the first event after which every COI angle stays
-  within `band_angle` (rad) of its final value (inf if it never does, or unstable);
+  within `band_angle` (rad) of its reference, provided it then stays there for at
+  least the last `window` s of the run; inf otherwise (still outside the band, or
+  inside it for less than `window` s before t_end: a swing the horizon cut short
+  is not settled), and inf for a run that lost synchronism;
 - `settling_speed`: the same for the speed deviations within `band_speed` (pu) of 0;
-- `overshoot`: the largest |COI angle - its final value| after the first event (rad);
-- `max_spread`: the largest |angle - COI| over the run (rad);
+- `overshoot`: the largest |COI angle - its reference| after the first event (rad);
+  inf for a run that lost synchronism;
+- `max_spread`: the largest |angle - COI| over the run (rad), up to the loss;
 - `v_min`, `v_max`: bus voltage magnitude range after the first event (pu);
-- `efd_max`: the largest field voltage (pu).
+- `efd_max`: the largest field voltage of the machines in service (pu).
+None of them is NaN.
 """
 
 from __future__ import annotations
@@ -23,9 +31,9 @@ from jaxtyping import Array, Bool, Float
 
 from .events import switch_times
 from .loop import Case, Operating
-from .simulate import GridTrajectory, coi_angles, simulate_case
+from .simulate import GridTrajectory, check_events, coi_angles, simulate_case
 
-__all__ = ["GridMetrics", "grid_metrics", "batch_metrics"]
+__all__ = ["GridMetrics", "grid_metrics", "batch_metrics", "settling_time", "WINDOW"]
 
 
 class GridMetrics(eqx.Module):
@@ -55,11 +63,15 @@ class GridMetrics(eqx.Module):
     )
 
 
-def _settling(ts, err, band, t0):
-    """Time from t0 after which err (T, n) stays below band in every column."""
+WINDOW = 1.0  # s: how long a quantity must stay in its band before t_end
+
+
+def settling_time(ts, err, band, t0, window):
+    """Time (s) from t0 after which err (T, n) stays at or below band in every
+    column, if it then stays there for at least the last `window` s; else inf."""
     out = jnp.any(err > band, axis=-1)
-    last = jnp.max(jnp.where(out, ts, -jnp.inf))
-    return jnp.where(out[-1], jnp.inf, jnp.maximum(last - t0, 0.0))
+    last = jnp.maximum(jnp.max(jnp.where(out, ts, -jnp.inf)), t0)
+    return jnp.where(ts[-1] - last >= window, last - t0, jnp.inf)
 
 
 def grid_metrics(
@@ -68,32 +80,40 @@ def grid_metrics(
     t_first: Float[Array, ""],
     band_angle: float = 0.01,
     band_speed: float = 1e-4,
+    window: float = WINDOW,
 ) -> GridMetrics:
-    """Metrics of one run whose first event is at t_first (s); vmap for a batch."""
-    mask = jnp.zeros(case.n_gen, dtype=bool)
-    for gt in case.layout.machine_gen:
-        mask = mask.at[jnp.asarray(gt)].set(True)
-    status = jnp.ones(case.n_gen) * mask
+    """Metrics (module docstring) of one run whose first event is at t_first (s);
+    bands in rad and pu, `window` in s; vmap for a batch."""
     ok = tr.stable
-    rel = coi_angles(case, jnp.nan_to_num(tr.delta), status)
-    after = tr.ts >= t_first
-    fin_rel = rel[-1]
-    d_err = jnp.where(mask, jnp.abs(rel - fin_rel), 0.0) * after[:, None]
-    w_err = jnp.where(mask, jnp.abs(jnp.nan_to_num(tr.omega)), 0.0) * after[:, None]
-    s_a = jnp.where(ok, _settling(tr.ts, d_err, band_angle, t_first), jnp.inf)
-    s_w = jnp.where(ok, _settling(tr.ts, w_err, band_speed, t_first), jnp.inf)
-    spread = jnp.nanmax(jnp.where(mask, jnp.abs(rel), 0.0))
-    vb = jnp.where(after[:, None], tr.v_bus, jnp.nan)
+    on = tr.gen_on > 0  # (T, n_gen): machines in service at each sample
+    valid = jnp.all(jnp.isfinite(tr.delta) | ~on, axis=-1)  # samples before a loss
+    delta = jnp.where(on, jnp.nan_to_num(tr.delta), 0.0)
+    rel = coi_angles(case, delta, tr.gen_on)
+    ref_eq = coi_angles(case, jnp.nan_to_num(tr.delta_ref), tr.gen_on[-1])
+    ref = jnp.where(jnp.all(jnp.isfinite(tr.delta_ref)), ref_eq, rel[-1])
+    after = (tr.ts >= t_first) & valid
+    use = on & after[:, None]
+    d_err = jnp.where(use, jnp.abs(rel - ref), 0.0)
+    w_err = jnp.where(use, jnp.abs(jnp.nan_to_num(tr.omega)), 0.0)
+    s_a = jnp.where(
+        ok, settling_time(tr.ts, d_err, band_angle, t_first, window), jnp.inf
+    )
+    s_w = jnp.where(
+        ok, settling_time(tr.ts, w_err, band_speed, t_first, window), jnp.inf
+    )
+    spread = jnp.max(jnp.where(on & valid[:, None], jnp.abs(rel), 0.0))
+    vb = jnp.where(after[:, None], jnp.nan_to_num(tr.v_bus, nan=jnp.inf), jnp.inf)
+    efd = jnp.where(on & valid[:, None], tr.efd, -jnp.inf)
     return GridMetrics(
         stable=ok,
         t_unstable=tr.t_unstable,
         settling_angle=s_a,
         settling_speed=s_w,
-        overshoot=jnp.where(ok, jnp.max(d_err), jnp.nan),
+        overshoot=jnp.where(ok, jnp.max(d_err), jnp.inf),
         max_spread=spread,
-        v_min=jnp.nanmin(vb),
-        v_max=jnp.nanmax(vb),
-        efd_max=jnp.nanmax(jnp.where(mask, tr.efd, -jnp.inf)),
+        v_min=jnp.min(vb),  # inf, -inf: no sample after the first event
+        v_max=jnp.max(jnp.where(jnp.isfinite(vb), vb, -jnp.inf)),
+        efd_max=jnp.max(efd),
         exhausted=tr.exhausted,
         n_steps=tr.n_steps,
     )
@@ -145,6 +165,7 @@ def batch_metrics(
     call = shard_batch(grid_batch_metrics, devices)
 
     def run(events) -> GridMetrics:
+        check_events(case, events)
         n = max(
             jnp.shape(x)[0] for x in jax.tree_util.tree_leaves(events) if jnp.ndim(x)
         )

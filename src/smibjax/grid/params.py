@@ -4,7 +4,9 @@
 `smibjax.grid.psse.DYR_MODELS`, which are the device groups' field names.
 
 `set_params` returns a new case (the values may be traced: differentiate or vmap
-through them); re-run the operating point afterwards, since references and states at
+through them); concrete values meet the same checks as a dyr file's (the device
+group's `__check_init__`: `ParameterError`, one line). Re-run the operating point
+afterwards, since references and states at
 rest depend on the parameters.
 """
 
@@ -54,10 +56,7 @@ def _locate(case: Case, name: str):
         have = sorted({type(g).__name__ for _, g, _ in _groups(case)})
         raise ParamError(f"{name}: the case has no {model} (it has {', '.join(have)})")
     where, group, pos = hits[0]
-    fields = [
-        f for f in group.__dataclass_fields__ if np.ndim(getattr(group, f, None)) == 1
-    ]
-    fields = [f for f in fields if f not in ("gen", "bus", "mbase")]
+    fields = _param_fields(group)
     if par not in fields:
         raise ParamError(
             f"{name}: {model} has no parameter {par!r} (it has {', '.join(fields)})"
@@ -88,6 +87,9 @@ def set_params(case: Case, values: dict) -> Case:
         old = jnp.asarray(getattr(group, par), dtype=jnp.float64)
         new = old.at[idx].set(jnp.asarray(value, dtype=jnp.float64))
         group2 = eqx.tree_at(lambda g, p=par: getattr(g, p), group, new)
+        check = getattr(group2, "__check_init__", None)
+        if check is not None:  # the checks a dyr file's values meet (concrete only)
+            check()
         kind, k = where
         groups = list(getattr(case, kind))
         groups[k] = group2
@@ -99,10 +101,20 @@ def tunable_names(case: Case, model: str) -> list[str]:
     """The parameter names of `model`'s group in the case."""
     for _, g, _ in _groups(case):
         if type(g).__name__ == model:
-            return [
-                f
-                for f in g.__dataclass_fields__
-                if np.ndim(getattr(g, f, None)) == 1
-                and f not in ("gen", "bus", "mbase")
-            ]
+            return _param_fields(g)
     return []
+
+
+def _param_fields(group) -> list[str]:
+    """A group's numeric parameters with a device axis (not its positions, bases or
+    names)."""
+    out = []
+    for f in group.__dataclass_fields__:
+        a = getattr(group, f, None)
+        if f in ("gen", "bus", "mbase") or np.ndim(a) != 1:
+            continue
+        kind = a.dtype.kind if hasattr(a, "dtype") else np.asarray(a).dtype.kind
+        if isinstance(a, list | tuple) or kind not in "fiu":
+            continue
+        out.append(f)
+    return out

@@ -486,9 +486,16 @@ def read_raw(path) -> RawData:
             f"{where}: case identification field REV: version {head['REV']:.6g} is not "
             "supported (this reader reads PSS/E 32, 33, 34 and 35 raw files)"
         )
-    if head["SBASE"] <= 0:
+    if not (0 < head["SBASE"] < math.inf):
+        what = "is not positive" if not head["SBASE"] > 0 else "is not finite"
         raise PsseError(
-            f"{where}: case identification field SBASE: {head['SBASE']!r} is not positive"
+            f"{where}: case identification field SBASE: {head['SBASE']!r} {what}"
+        )
+    if not (0 <= head["BASFRQ"] < math.inf):
+        what = "is not positive" if not head["BASFRQ"] > 0 else "is not finite"
+        raise PsseError(
+            f"{where}: case identification field BASFRQ: {head['BASFRQ']!r} {what} "
+            "(0: the default, 60 Hz)"
         )
     title = tuple(
         (lines[k].rstrip() if k < len(lines) else "") for k in (first + 1, first + 2)
@@ -559,11 +566,25 @@ def read_raw(path) -> RawData:
     return raw
 
 
+MAX_BUS = 999_999
+"""The largest bus number (PSS/E's is 999,997)."""
+
+
+def _short(x) -> str:
+    """A number as written in a one-line message: at most 12 significant digits."""
+    return f"{x:.12g}" if abs(x) >= 1e12 else str(x)
+
+
 def _fill_and_check(raw: RawData) -> None:
     """Fill the defaults that depend on other data and check the bus references."""
     name = raw.path
     buses = {}
     for b in raw.buses:
+        if not 1 <= b["I"] <= MAX_BUS:
+            raise PsseError(
+                f"{name}:{b['_line']}: bus field I: {_short(b['I'])} is not a bus "
+                f"number (1 to {MAX_BUS})"
+            )
         if b["I"] in buses:
             raise PsseError(
                 f"{name}:{b['_line']}: bus field I: bus {b['I']} is already defined "
@@ -593,9 +614,14 @@ def _fill_and_check(raw: RawData) -> None:
         known(r, "generator", "I")
         if r["MBASE"] is None:
             r["MBASE"] = raw.sbase
-        if r["MBASE"] <= 0:
+        if not 0 < r["MBASE"] < math.inf:
             raise PsseError(
                 f"{name}:{r['_line']}: generator field MBASE: {r['MBASE']!r} is not positive"
+            )
+        if not 0 < r["VS"] < math.inf:  # a power flow from 0 V has no solution
+            raise PsseError(
+                f"{name}:{r['_line']}: generator field VS: {r['VS']!r} is not a "
+                "positive voltage set point (pu)"
             )
     for r in raw.branches:
         known(r, "branch", "I")

@@ -13,6 +13,8 @@ of one structure (`simulate_batch`), differentiable through the adaptive solver.
 
 from __future__ import annotations
 
+import math
+
 import diffrax as dfx
 import equinox as eqx
 import jax
@@ -22,11 +24,18 @@ from jaxtyping import Array, Bool, Float
 
 from .._options import SolverOptions
 from .._solve import adaptive_solve
-from .events import check_order, switch_times
+from .._validate import ParameterError
+from .events import check_order, check_positions, switch_times
 from .loop import Case, Operating, evaluate, vector_field
 from .network import stage_configs, stage_matrices
 
-__all__ = ["GridTrajectory", "simulate_case", "coi_angles", "angle_spread"]
+__all__ = [
+    "GridTrajectory",
+    "simulate_case",
+    "check_events",
+    "coi_angles",
+    "angle_spread",
+]
 
 
 class GridTrajectory(eqx.Module):
@@ -37,7 +46,11 @@ class GridTrajectory(eqx.Module):
     magnitude (pu). `stable`: no loss of synchronism within the horizon;
     `t_unstable`: when synchronism was lost (inf if never); `exhausted`: the step
     budget ran out first (neither verdict holds); `y_final`: the state at the end
-    (t_end, or where synchronism was lost)."""
+    (t_end, or where synchronism was lost); `gen_on`: 1 where a machine (not an
+    infinite bus) is in service at the sample, 0 from its trip; `delta_ref`: the
+    angles (rad, synchronous frame) of the post-disturbance equilibrium where it is
+    known, the operating point's when the network in force at t_end is the one
+    before the events (faults cleared, branches reclosed), NaN otherwise."""
 
     ts: Float[Array, " T"]
     delta: Float[Array, "T n_gen"]
@@ -53,6 +66,8 @@ class GridTrajectory(eqx.Module):
     exhausted: Bool[Array, ""]
     n_steps: Array
     y_final: Float[Array, " n_state"]
+    gen_on: Float[Array, "T n_gen"]
+    delta_ref: Float[Array, " n_gen"]
 
 
 def coi_weights(case: Case, gen_status) -> Float[Array, " n_gen"]:
@@ -66,12 +81,14 @@ def coi_weights(case: Case, gen_status) -> Float[Array, " n_gen"]:
 
 
 def coi_angles(case: Case, delta, gen_status) -> Float[Array, "... n_gen"]:
-    """Angles referred to the centre of inertia (rad), or to the synchronous frame
-    (the infinite bus's) where the case has an infinite bus."""
+    """Angles referred to the centre of inertia of the machines in service
+    (`gen_status`: one per generator, or one row per sample) (rad), or to the
+    synchronous frame (the infinite bus's) where the case has an infinite bus."""
     if len(case.sources):
         return delta
-    w = coi_weights(case, gen_status)
-    return delta - jnp.sum(w * delta, axis=-1, keepdims=True) / jnp.sum(w)
+    w = coi_weights(case, gen_status)  # (..., n_gen) with a status per sample
+    w_sum = jnp.sum(w, axis=-1, keepdims=True)
+    return delta - jnp.sum(w * delta, axis=-1, keepdims=True) / w_sum
 
 
 def angle_spread(case: Case, delta, gen_status):
@@ -109,7 +126,12 @@ def simulate_case(
     with `fixed_dt` (s), explicit Euler at that constant step and no error control
     (the prior art's fixed-step integration, for comparison; switching times should
     then be multiples of `fixed_dt`)."""
-    check_order(events)
+    check_events(case, events)
+    if not (0 < dt_save <= t_end < math.inf):
+        raise ParameterError(
+            f"dt_save = {dt_save:g} s is not allowed: must lie in (0, t_end = "
+            f"{t_end:g} s] (a finite horizon sampled at least twice)"
+        )
     cfgs = stage_configs(op.grid, events)
     mats = stage_matrices(op.grid, cfgs, events)
     t_sw = switch_times(events)
@@ -147,7 +169,26 @@ def simulate_case(
     k = jnp.sum(jnp.isfinite(sol.ts)) - 1
     ys = sol.ys[:-1]
     stopped = sol.result == dfx.RESULTS.event_occurred
-    return _record(case, op, mats, t_sw, ts, ys, stopped, sol.ts[k], sol, sol.ys[k])
+    if t_sw.shape[0]:
+        stage = jnp.sum(ts[:, None] >= t_sw[None, :], axis=1)
+    else:
+        stage = jnp.zeros(ts.shape[0], dtype=jnp.int32)
+    gen_on = mats.gen_status[stage] * mask
+    same = _same_network(cfgs, stage[-1])
+    delta_ref = jnp.where(same, _delta_of(case, op, op.y0), jnp.nan)
+    fields = _record(case, op, mats, t_sw, ts, ys, stopped, sol.ts[k], sol, sol.ys[k])
+    return GridTrajectory(**fields, gen_on=gen_on, delta_ref=delta_ref)
+
+
+def _same_network(cfgs, stage):
+    """Whether the network of `stage` is the one before the events (stage 0): same
+    branch and generator status, no fault, no split branch."""
+    keys = ("branch_status", "fault_y", "bolted", "seg_on", "gen_status")
+    out = jnp.asarray(True)
+    for k in keys:
+        a = getattr(cfgs, k)
+        out = out & jnp.all(a[stage] == a[0])
+    return out
 
 
 def _delta_of(case, op, y):
@@ -196,7 +237,7 @@ def _record(case, op, mats, t_sw, ts, ys, stopped, t_last, sol, y_last):
     meas, vbus = jax.lax.fori_loop(0, n_stage, stage_pass, acc0)
     nan = jnp.where(valid, 0.0, jnp.nan)[:, None]
     pick = {k: meas[k] + nan for k in ("delta", "omega", "Efd", "Pm", "Pe", "Vt", "Vs")}
-    return GridTrajectory(
+    return dict(
         ts=ts,
         delta=pick["delta"],
         omega=pick["omega"],
@@ -214,19 +255,38 @@ def _record(case, op, mats, t_sw, ts, ys, stopped, t_last, sol, y_last):
     )
 
 
-@eqx.filter_jit
+def check_events(case: Case, events) -> None:
+    """`ParameterError`/`ValueError` (one line) for concrete events that do not fit
+    the case (a position past its buses, branches or generators) or are out of time
+    order; traced events are trusted. Run before tracing: under `jit` the events'
+    values are not known."""
+    check_order(events)
+    sys_ = case.system
+    check_positions(events, sys_.n_bus, len(sys_.branches.r), case.n_gen)
+
+
+_simulate_jit = eqx.filter_jit(simulate_case)
+
+
 def simulate_jit(case: Case, op: Operating, events=(), **options) -> GridTrajectory:
     """`simulate_case`, jitted (the case and operating point traced, `options`
-    static)."""
-    return simulate_case(case, op, events, **options)
+    static); concrete events are checked first (`check_events`)."""
+    check_events(case, events)
+    return _simulate_jit(case, op, events, **options)
 
 
 @eqx.filter_jit
-def simulate_batch(case: Case, op: Operating, events, **options) -> GridTrajectory:
-    """`simulate_case` over a batch of scenarios: `events` has a leading batch axis
-    on every leaf that varies (scalars are shared); the case and operating point are
-    shared. Returns a GridTrajectory with a leading batch axis."""
+def _simulate_batch(case: Case, op: Operating, events, **options) -> GridTrajectory:
     axes = jax.tree_util.tree_map(lambda x: 0 if jnp.ndim(x) else None, events)
     return jax.vmap(lambda ev: simulate_case(case, op, ev, **options), in_axes=(axes,))(
         events
     )
+
+
+def simulate_batch(case: Case, op: Operating, events, **options) -> GridTrajectory:
+    """`simulate_case` over a batch of scenarios: `events` has a leading batch axis
+    on every leaf that varies (scalars are shared); the case and operating point are
+    shared. Returns a GridTrajectory with a leading batch axis. Concrete events are
+    checked first (`check_events`)."""
+    check_events(case, events)
+    return _simulate_batch(case, op, events, **options)

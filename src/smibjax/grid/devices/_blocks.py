@@ -18,6 +18,7 @@ Limits come in the two kinds of the PSS/E block diagrams:
 
 from __future__ import annotations
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 
@@ -176,9 +177,10 @@ def fex(i_n):
 
 def check(obj, rules) -> None:
     """Validate concrete parameters of `obj`: `rules` is a list of (name, ok-function
-    of the NumPy values of `obj`, what is allowed). Skipped under tracing."""
-    fields = [getattr(obj, n) for n, _, _ in rules]
-    if not is_concrete(*fields):
+    of the NumPy values of `obj`, what is allowed). Skipped under tracing (any field
+    traced: a rule may read fields other than the one it names, and `set_params`
+    runs these checks on a group whose values may be traced)."""
+    if not is_concrete(*jax.tree_util.tree_leaves(obj)):
         return
     for name, ok, allowed in rules:
         require(ok(obj), type(obj).__name__, name, getattr(obj, name), allowed)

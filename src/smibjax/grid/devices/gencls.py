@@ -16,6 +16,7 @@ import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 
+from ..._validate import MAX_MAGNITUDE, is_concrete, require
 from .base import AbstractMachine, f64, i64
 
 __all__ = ["GENCLS"]
@@ -31,6 +32,35 @@ class GENCLS(AbstractMachine):
     f_base: float = eqx.field(static=True, default=60.0)
 
     state_names = ("delta", "omega")
+
+    def __check_init__(self):
+        names = ("mbase", "H", "D", "xdp", "ra")
+        vals = {k: getattr(self, k) for k in names}
+        if not is_concrete(*vals.values()):
+            return
+        v = {k: np.asarray(a, float) for k, a in vals.items()}
+        big = f"must be finite and at most {MAX_MAGNITUDE:g}"
+        for k in names:
+            require(
+                np.isfinite(v[k]) & (np.abs(v[k]) <= MAX_MAGNITUDE),
+                "GENCLS",
+                k,
+                v[k],
+                big,
+            )
+        for k in ("mbase", "H"):  # H = 0 is an infinite bus, not a machine
+            require(v[k] > 0, "GENCLS", k, v[k], "must be > 0")
+        require(v["D"] >= 0, "GENCLS", "D", v["D"], "must be >= 0")
+        require(
+            v["ra"] >= 0, "GENCLS", "ra", v["ra"], "must be >= 0 (the raw file's ZR)"
+        )
+        require(
+            v["xdp"] > 0,
+            "GENCLS",
+            "xdp",
+            v["xdp"],
+            "must be > 0 (the raw file's ZX: X'd)",
+        )
 
     @classmethod
     def from_params(cls, gen, params, *, mbase, zsource, f_base=60.0):
