@@ -577,3 +577,27 @@ def test_compare_summary_of_a_set_with_a_lost_run_has_no_nan():
     assert s["settling_mean"] == 2.0 and s["stable_fraction"] == pytest.approx(2 / 3)
     none = case_summary({**rows, "stable": [False] * 3})
     assert none["overshoot_mean"] is None and none["settling_mean"] is None
+
+
+def test_recorded_coi_angles_leave_a_tripped_machine_out():
+    """`simulate --case`'s delta_coi (issue 49, class 2): from a machine's trip on,
+    the centre of inertia is that of the machines still in service (their
+    inertia-weighted angles sum to 0) and the tripped machine's column is NaN."""
+    from types import SimpleNamespace
+
+    from smibjax.cli.grid import coi_record
+    from smibjax.grid.case import load_case
+    from smibjax.grid.simulate import coi_weights
+
+    case = load_case("kundur-gencls")
+    rng = np.random.default_rng(0)
+    delta = rng.normal(size=(5, case.n_gen))
+    on = np.ones((5, case.n_gen))
+    on[3:, 0] = 0.0  # G1 trips between the third and fourth samples
+    rel = coi_record(case, SimpleNamespace(delta=delta, gen_on=on))
+    assert np.all(np.isnan(rel[3:, 0])) and np.all(np.isfinite(rel[:3]))
+    w = np.asarray(coi_weights(case, np.ones(case.n_gen)))
+    for k in range(5):
+        live = on[k] > 0
+        assert abs(np.sum(w[live] * rel[k, live])) < 1e-12 * np.sum(w[live])
+    assert abs(rel[4, 1] - (delta[4, 1] - w[1:] @ delta[4, 1:] / w[1:].sum())) < 1e-12

@@ -500,6 +500,18 @@ def _chunk_that_fits(case, events, args, chunk: int) -> int:
     return fit
 
 
+def coi_record(case, tr) -> np.ndarray:
+    """The recorded angles referred to the centre of inertia of the machines in
+    service at each sample (rad, (T, n_gen)); a machine tripped during the run is NaN
+    from its trip on (its frozen angle has no meaning against the others)."""
+    from ..grid.simulate import coi_angles
+
+    on = np.asarray(tr.gen_on)
+    rel = np.asarray(coi_angles(case, tr.delta, tr.gen_on))
+    tripped = (on[:1] > 0) & (on <= 0)
+    return np.where(tripped, np.nan, rel)
+
+
 def run_simulate(args) -> int:
     """`simulate --case`: one run; summary, the trajectory (per-generator and per-bus
     arrays with their PSS/E ids) in the format of the --out suffix, the plot."""
@@ -509,7 +521,7 @@ def run_simulate(args) -> int:
     from .._files import check_new_file
     from ..grid.loop import gen_names
     from ..grid.metrics import grid_metrics
-    from ..grid.simulate import coi_angles, simulate_jit
+    from ..grid.simulate import simulate_jit
     from .simulate import check_out
 
     out = check_out(args.out, args.force) if args.out else None
@@ -549,8 +561,7 @@ def run_simulate(args) -> int:
         f"{float(m.max_spread):.3f} rad; bus voltages {float(m.v_min):.3f}-"
         f"{float(m.v_max):.3f} pu; peak Efd {float(m.efd_max):.3f} pu"
     )
-    status = jnp.ones(case.n_gen)
-    rel = np.asarray(coi_angles(case, tr.delta, status))
+    rel = coi_record(case, tr)
     arrays = {
         "t": np.asarray(tr.ts),
         "gen": np.array(names),
