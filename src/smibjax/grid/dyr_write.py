@@ -216,7 +216,8 @@ def rewrite_dyr(
                 f"{where}: {model} record has {len(values)} parameters, expected "
                 f"{len(names)} ({' '.join(names)})"
             )
-        for p, new in want[key].items():
+        for p in (p for p in names if p in want[key]):  # the record's order
+            new = want[key][p]
             li, a, b, _ = values[names.index(p)]
             try:
                 old = float(_number(lines[li][a:b], "f"))
