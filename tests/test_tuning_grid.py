@@ -236,7 +236,9 @@ def test_shipped_configs_tuned_dyr_round_trips(config, tmp_path):
     case = load_case_from(cfg)
     space = make_space(case, cfg["gains"])
     problem = SimpleNamespace(case=case, space=space)
-    moved = space.to_raw(space.start * (1 + 0.1 * np.sqrt(np.arange(len(space.names)))))
+    moved = space.to_raw(
+        space.start * (1 + 0.1 * np.sqrt(np.arange(1, len(space.names) + 1)))
+    )
     gains = _gains(cfg, problem, moved)
     ties = {f for f, _ in space.tie}
     assert set(gains) == {*space.names, *ties, *cfg["case"]["set"]}
