@@ -148,6 +148,120 @@ def test_tiny_run_writes_its_files(tiny_run):
     assert len(rows) == 3  # header + 2 steps
 
 
+def test_tuned_dyr_round_trips(tiny_run, tmp_path):
+    """tuned.dyr is the case's dyr file with the tuned numbers written in: read back,
+    its IEEEST record has gains.json's values exactly and every other record the
+    case file's, lines without a tuned number are the case file's bytes, and
+    report.md has the old -> new table. The tiny run's best is its start (its
+    validation cannot tell the steps apart), so the round trip to the simulation is
+    also checked on gains moved off the start, written by the tuner's own
+    `tuned_dyr`: the case loaded from that file (`simulate --case RAW --dyr
+    tuned.dyr`'s library path) is the case with the gains set by `set_params`,
+    leaf for leaf, and runs the same trajectory (1e-12)."""
+    from types import SimpleNamespace
+
+    from smibjax.grid.case import load_case
+    from smibjax.grid.events import BusFault
+    from smibjax.grid.operating import operating_point
+    from smibjax.grid.params import set_params
+    from smibjax.grid.psse import read_dyr
+    from smibjax.grid.simulate import simulate_case
+    from tuning.grid_run import tuned_dyr
+
+    rc, out, cfg_path = tiny_run
+    assert rc == 0
+    gains = json.loads((out / "gains.json").read_text())
+
+    def check_file(tuned, gains):
+        new, old = read_dyr(tuned), read_dyr(DYR)
+        assert [(r.model, r.bus, r.line) for r in new] == [
+            (r.model, r.bus, r.line) for r in old
+        ]
+        for a, b in zip(old, new, strict=True):
+            for p, v in a.params.items():
+                want = gains.get(f"{a.model}[{a.bus}:{a.ident}].{p}", v)
+                assert b.params[p] == want, (a.model, p)
+        la = DYR.read_bytes().splitlines(keepends=True)
+        lb = tuned.read_bytes().splitlines(keepends=True)
+        assert len(la) == len(lb)
+        diff = [k for k, (x, y) in enumerate(zip(la, lb, strict=True)) if x != y]
+        assert diff == [3, 4]  # IEEEST's T1 ... T6 line and its KS line (0-based)
+        assert lb[4].endswith(
+            b"/ PSS on speed: KS = 5, two lead-lags 0.2/0.05, washout 3 s\n"
+        )
+
+    check_file(out / "tuned.dyr", gains)
+    report = (out / "report.md").read_text()
+    assert "## tuned.dyr: old -> new per device and parameter" in report
+    row = next(x for x in report.splitlines() if x.startswith("| IEEEST[1:1] | KS |"))
+    assert row.split("|")[3:5] == [" 3 ", " 5 "]  # the record's line, the old value
+    assert float(row.split("|")[5]) == pytest.approx(gains["IEEEST[1:1].KS"], rel=1e-5)
+
+    base = load_case(RAW, DYR)
+    moved = {k: v * math.sqrt(3.0) for k, v in gains.items()}  # 17-digit values
+    cfg = load_grid_config(cfg_path)
+    text = tuned_dyr(cfg, SimpleNamespace(case=base), moved).text
+    (tmp_path / "tuned.dyr").write_text(text, encoding="utf-8")
+    check_file(tmp_path / "tuned.dyr", moved)
+    from_dyr = load_case(RAW, tmp_path / "tuned.dyr")
+    by_set = set_params(base, moved)
+    la, lb = jax.tree_util.tree_leaves(from_dyr), jax.tree_util.tree_leaves(by_set)
+    assert len(la) == len(lb)
+    assert all(np.array_equal(x, y) for x, y in zip(la, lb, strict=True))
+    fault = BusFault(bus=base.system.bus_index(2), t_on=0.2, t_off=0.27)
+    sim = jax.jit(lambda c, o: simulate_case(c, o, [fault], t_end=1.5, dt_save=0.05))
+    runs = [sim(c, operating_point(c, 1.0, 1.0)[0]) for c in (from_dyr, by_set, base)]
+    assert bool(runs[0].stable)
+    for f in ("delta", "omega", "efd", "vs"):
+        a, b = np.asarray(getattr(runs[0], f)), np.asarray(getattr(runs[1], f))
+        assert np.max(np.abs(a - b)) <= 1e-12, f
+    # the case file's settings run another trajectory: the comparison can tell
+    assert np.max(np.abs(np.asarray(runs[2].vs) - np.asarray(runs[0].vs))) > 1e-4
+
+
+@pytest.mark.parametrize("config", ["kundur_pss.toml", "ieee39_pss.toml"])
+def test_shipped_configs_tuned_dyr_round_trips(config, tmp_path):
+    """The shipped configs' tuned.dyr (the tuner's `_gains` and `tuned_dyr` on
+    values moved off the start, no run): the built-in case's dyr file with every
+    trained value, tie (Kundur's T5 = T6) and `case.set` value (Kundur's TGOV1.VMAX
+    = 1.1 on every governor) written in; the case read from it equals the tuner's
+    case with those values set, leaf for leaf."""
+    from types import SimpleNamespace
+
+    from smibjax.grid.case import case_files, load_case
+    from smibjax.grid.params import set_params
+    from smibjax.grid.psse import read_dyr
+    from tuning.grid_problem import load_case_from, make_space
+    from tuning.grid_run import _gains, case_dyr, tuned_dyr
+
+    cfg = load_grid_config(ROOT / "tuning/configs" / config)
+    case = load_case_from(cfg)
+    space = make_space(case, cfg["gains"])
+    problem = SimpleNamespace(case=case, space=space)
+    moved = space.to_raw(
+        space.start * (1 + 0.1 * np.sqrt(np.arange(1, len(space.names) + 1)))
+    )
+    gains = _gains(cfg, problem, moved)
+    ties = {f for f, _ in space.tie}
+    assert set(gains) == {*space.names, *ties, *cfg["case"]["set"]}
+    p = tmp_path / "tuned.dyr"
+    p.write_text(tuned_dyr(cfg, problem, gains).text, encoding="utf-8")
+    old, new = read_dyr(case_dyr(cfg)), read_dyr(p)
+    n_changed = 0
+    for a, b in zip(old, new, strict=True):
+        for q, v in a.params.items():
+            name = f"{a.model}[{a.bus}:{a.ident}].{q}"
+            want = gains.get(name, gains.get(f"{a.model}.{q}", v))
+            assert b.params[q] == want, name
+            n_changed += b.params[q] != v
+    assert n_changed >= len(space.names)
+    from_dyr = load_case(case_files(cfg["case"]["name"])[0], p)
+    by_set = set_params(case, gains)
+    la, lb = jax.tree_util.tree_leaves(from_dyr), jax.tree_util.tree_leaves(by_set)
+    assert len(la) == len(lb)
+    assert all(np.array_equal(x, y) for x, y in zip(la, lb, strict=True))
+
+
 def test_gradient_matches_central_differences(tmp_path):
     """d loss / d log KS (the stabilizer gain, through the power flows, the adaptive
     solver of both scenarios and the eigenvalues) against central differences; the
@@ -209,6 +323,15 @@ BAD = [
     (
         ('names = ["IEEEST.KS", "IEEEST.T1", "IEEEST.T3"]', 'names = ["TGOV1.R"]'),
         "the case has no TGOV1",
+    ),
+    # a parameter that is not a dyr parameter (from the raw file): tuned.dyr could
+    # not hold it (issue 48)
+    (
+        (
+            'names = ["IEEEST.KS", "IEEEST.T1", "IEEEST.T3"]',
+            'names = ["IEEEST.KS", "GENTRA.ra"]',
+        ),
+        "tuned.dyr: GENTRA[1:1].ra: GENTRA.ra is not a parameter of the GENTRA dyr",
     ),
     (
         ('"IEEEST.KS" = [0.5, 50.0]', '"IEEEST.KS" = [10.0, 50.0]'),

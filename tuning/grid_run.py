@@ -9,9 +9,12 @@ and at the end) writes a checkpoint and refreshes the damping term's reference m
 
 Outputs in `--out DIR`: `gains.json` (the best validated parameters as a flat table
 of device parameters by name: `python -m smibjax modes --case NAME --gains
-gains.json` reads it), `summary.json` (start and tuned validation, modes, physics),
-`report.md`, `history.csv`, `trajectories.png` (every machine on the reference
-fault, textbook and tuned), `config.json`, the checkpoint.
+gains.json` reads it), `tuned.dyr` (the case's dyr file with the tuned records'
+parameters, and those of `case.set`, replaced: `smibjax.grid.dyr_write`; `simulate
+--case RAW --dyr tuned.dyr` runs the tuned case), `summary.json` (start and tuned
+validation, modes, physics), `report.md` (with the table of tuned.dyr's changes),
+`history.csv`, `trajectories.png` (every machine on the reference fault, textbook
+and tuned), `config.json`, the checkpoint.
 """
 
 from __future__ import annotations
@@ -399,7 +402,67 @@ def _fmt(x, spec=".3f"):
     return "inf" if x == math.inf else ("nan" if x != x else format(x, spec))
 
 
-def _report(cfg, problem, state, start_raw, modes_before, modes_after, phys, wall):
+def case_dyr(cfg) -> Path:
+    """The dyr file of the config's case (a built-in case's from the package)."""
+    from smibjax.grid.case import case_files
+
+    c = cfg["case"]
+    return Path(c["dyr"]) if c["dyr"] else case_files(c["name"])[1]
+
+
+def tuned_dyr(cfg, problem, gains: dict):
+    """The `DyrRewrite` of the case's dyr file with `gains` (parameter values by name,
+    as in gains.json) written into its records; one-line `ParameterError` for a
+    parameter that is not a dyr parameter or a record the file lacks."""
+    from smibjax import ParameterError
+    from smibjax.grid.dyr_write import dyr_updates, rewrite_dyr
+
+    try:
+        return rewrite_dyr(case_dyr(cfg), dyr_updates(problem.case, gains))
+    except ParameterError as e:
+        raise ParameterError(f"tuned.dyr: {e}") from None
+
+
+def _gains(cfg, problem, raw) -> dict:
+    """The flat table of gains.json: `case.set`, then the trained values and their
+    ties at raw."""
+    sp = problem.space
+    vals = sp.values(raw)
+    gains = {k: float(v) for k, v in cfg["case"]["set"].items()}
+    return gains | {n: float(vals[n]) for n in (*sp.names, *(f for f, _ in sp.tie))}
+
+
+def _dyr_table(rewrite, dyr_name: str) -> list[str]:
+    """The report's table of the numbers changed in tuned.dyr."""
+    lines = [
+        "",
+        "## tuned.dyr: old -> new per device and parameter",
+        "",
+        f"The case's dyr file ({dyr_name}) with these numbers replaced (written to "
+        "round-trip float64); every other character as in the case's file.",
+        "",
+        "| device | parameter | line | old | new | change |",
+        "|---|---|---|---|---|---|",
+    ]
+    for c in rewrite.changes:
+        ch = f"{100 * (c.new - c.old) / c.old:+.1f}%" if c.old else ""
+        lines.append(
+            f"| {c.device} | {c.param} | {c.line} | {c.old:.6g} | {c.new:.6g} | {ch} |"
+        )
+    return lines
+
+
+def _report(
+    cfg,
+    problem,
+    state,
+    start_raw,
+    modes_before,
+    modes_after,
+    phys,
+    wall,
+    rewrite=None,
+):
     v0 = state.validation[0]
     vb = state.best.summary
     target = cfg["loss"]["target_damping"]
@@ -530,21 +593,23 @@ def _report(cfg, problem, state, start_raw, modes_before, modes_after, phys, wal
         )
     for f, lead in sp.tie:
         lines.append(f"| {f} | (follows {lead}) | {float(tuned[f]):.4g} | | |")
+    if rewrite is not None:
+        lines += _dyr_table(rewrite, case_dyr(cfg).name)
     return "\n".join(lines) + "\n"
 
 
 def finish_grid(cfg, out: Path, problem, state, wall=None) -> dict:
-    """Write gains.json, summary.json, report.md, history.csv, trajectories.png."""
-    from smibjax._files import write_json, write_text
+    """Write gains.json, tuned.dyr, summary.json, report.md, history.csv,
+    trajectories.png."""
+    from smibjax._files import atomic_write, write_json, write_text
 
     from .outputs import write_history
 
     sp = problem.space
     raw0 = sp.to_raw(sp.start)
     best = state.best.raw
-    vals = sp.values(best)
-    gains = {k: float(v) for k, v in cfg["case"]["set"].items()}
-    gains |= {n: float(vals[n]) for n in (*sp.names, *(f for f, _ in sp.tie))}
+    gains = _gains(cfg, problem, best)
+    rewrite = tuned_dyr(cfg, problem, gains)
     lfs = cfg["validation"]["load_factors"]
     modes_before = _modes_at(problem, raw0, lfs)
     modes_after = _modes_at(problem, best, lfs)
@@ -570,8 +635,16 @@ def finish_grid(cfg, out: Path, problem, state, wall=None) -> dict:
     write_json(out / "summary.json", json.loads(json.dumps(summary, default=float)))
     write_text(
         out / "report.md",
-        _report(cfg, problem, state, raw0, modes_before, modes_after, phys, wall),
+        _report(
+            cfg, problem, state, raw0, modes_before, modes_after, phys, wall, rewrite
+        ),
     )
+
+    def _dyr(tmp):  # the case file's bytes, those of the replaced numbers aside
+        with open(tmp, "wb") as fh:
+            fh.write(rewrite.text.encode("utf-8", errors="surrogateescape"))
+
+    atomic_write(out / "tuned.dyr", _dyr)
     write_json(out / "gains.json", gains)
     return summary
 
@@ -592,7 +665,13 @@ def main(args) -> int:
         if args.resume and not args.out:
             raise ParameterError("--resume needs --out DIR (the run to continue)")
         # every check before anything is written; the problem is kept for run_grid
-        _compiled(cfg, build_grid, make_step)
+        problem0 = _compiled(cfg, build_grid, make_step)[0]
+        # the tuned parameters can be written into the case's dyr file (tuned.dyr)
+        tuned_dyr(
+            cfg,
+            problem0,
+            _gains(cfg, problem0, problem0.space.to_raw(problem0.space.start)),
+        )
         out = output(args)
         check_out_folder(out)  # writable, before any work
         resume = start_mode(out, cfg, args.resume, CHECKPOINT)
@@ -603,7 +682,10 @@ def main(args) -> int:
         problem, state = run_grid(cfg, out, resume=resume, quiet=args.quiet)
         total, _ = clock.finish(time.perf_counter() - t0)
         finish_grid(cfg, out, problem, state, wall=total)
-        print(f"wrote {out}/gains.json, report.md, summary.json, history.csv and plots")
+        print(
+            f"wrote {out}/gains.json, tuned.dyr, report.md, summary.json, "
+            "history.csv and plots"
+        )
         return 0
     except (CLIError, ParameterError, OSError) as e:
         print(f"tuning.optimize: error: {e}", file=sys.stderr)

@@ -37,6 +37,12 @@ if TYPE_CHECKING:  # the public names; loaded on first use (`__getattr__`)
     from .cct import critical_clearing_times_grid as critical_clearing_times_grid
     from .damping import damping_loss as damping_loss
     from .damping import mode_damping as mode_damping
+
+    # issue 48: parameters written back into the case's dyr file
+    from .dyr_write import DyrChange as DyrChange
+    from .dyr_write import DyrRewrite as DyrRewrite
+    from .dyr_write import dyr_updates as dyr_updates
+    from .dyr_write import rewrite_dyr as rewrite_dyr
     from .events import BranchClose as BranchClose
     from .events import BranchTrip as BranchTrip
     from .events import BusFault as BusFault
