@@ -280,6 +280,12 @@ def test_cct_on_a_case_uses_the_commands_tolerances(tmp_path, monkeypatch, capsy
     ]
     assert (tmp_path / "cct.png").stat().st_size > 5_000
     assert f"wrote {tmp_path / 'cct.json'} and {tmp_path / 'cct.png'}" in printed
+    # the result's context (issue 49, class 9) and the engine's search per bus
+    assert (data["load_factor"], data["t_end"], data["params"]) == (1.0, 2.0, {})
+    assert (data["rtol"], data["atol"]) == (1e-7, 1e-9)
+    assert (
+        data["status"] == {"2": "ok"} and data["first_unstable"]["2"] > data["cct"]["2"]
+    )
 
 
 def test_cct_out_of_another_format_is_refused_before_the_run(tmp_path, capsys):

@@ -1003,8 +1003,9 @@ def add_montecarlo_options(p) -> None:
 
 def run_cct(args) -> int:
     """`cct --case`: the critical clearing time of a bolted fault at each bus of
-    --fault-buses (cleared without tripping), by bisection to --tol, all buses in
-    one batch per bisection step; with --out the JSON (rows by PSS/E bus number and
+    --fault-buses (cleared without tripping), by the engine's scan and bisection to
+    --tol, all buses in one batch per step; with --out the JSON (its context: case,
+    --param values, load factor, horizon and tolerances; rows by PSS/E bus number and
     name) and its plot beside it (.png)."""
     from .._files import check_new_file, write_json
     from .plotting import plot_case_cct
@@ -1029,15 +1030,24 @@ def run_cct(args) -> int:
         rows = cct_rows(case, res)
         write_json(
             out,
-            {"case": case.name, "params": _params(args.param), **res, "rows": rows},
+            {
+                "case": case.name,
+                "params": _params(args.param),
+                "load_factor": args.load_factor,
+                "t_end": args.t_end,
+                "rtol": args.rtol,
+                "atol": args.atol,
+                **res,
+                "rows": rows,
+            },
         )
         plot_case_cct(
             rows,
             res["t_max"],
             png,
             f"{case.name}: critical clearing time of a bolted bus fault at "
-            f"{res['t_fault']:g} s, removed without tripping (bisection to "
-            f"{res['tol']:g} s)",
+            f"{res['t_fault']:g} s, removed without tripping (scan, then bisection "
+            f"to {res['tol']:g} s)",
         )
         print(f"wrote {out} and {png}")
     return 0
