@@ -421,14 +421,31 @@ def test_grad_through_nan_gains_refused_before_solving():
         jax.grad(loss)(g)
 
 
-def test_cache_folder_that_is_a_file_one_warning(tmp_path, capsys):
-    from smibjax._process import enable_compilation_cache
+def test_cache_folder_that_is_a_file_said_on_the_phase_line(tmp_path, capsys):
+    """A cache folder that is a file: nothing printed when the cache is set up (a
+    refused input after it stays one line, issue 49 class 10); the phase line before
+    the first compile says the cache is off and why."""
+    import jax
+
+    from smibjax import _process
+    from smibjax._commandline import say_compiling
 
     f = tmp_path / "cache"
     f.write_text("x")
-    assert enable_compilation_cache(str(f)) is None
-    err = capsys.readouterr().err
-    assert err.count("\n") == 1 and "not a writable folder" in err
+    before = jax.config.jax_compilation_cache_dir
+    try:
+        jax.config.update("jax_compilation_cache_dir", None)
+        assert _process.enable_compilation_cache(str(f)) is None
+        assert capsys.readouterr().err == ""
+        say_compiling("the simulation")
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and err.startswith(
+            "compiling the simulation (cache: off: "
+        )
+        assert f"{str(f)!r} is not a writable folder" in err
+    finally:
+        _process.CACHE_PROBLEM = None
+        jax.config.update("jax_compilation_cache_dir", before)
 
 
 def test_read_data_deep_toml_is_one_line(tmp_path):

@@ -39,6 +39,11 @@ def use_host_devices(minimum: int = 1) -> None:
     ).strip()
 
 
+CACHE_PROBLEM: str | None = None
+"""Why the compilation cache asked for is off (a path that is not a writable
+folder), or None: `cache_state` says it on the phase line before a compile."""
+
+
 def enable_compilation_cache(path: str | None = None) -> str | None:
     """Turn on JAX's persistent compilation cache in `path` (default:
     $SMIBJAX_CACHE_DIR, else ~/.cache/smibjax/jax; an empty SMIBJAX_CACHE_DIR turns
@@ -56,14 +61,14 @@ def enable_compilation_cache(path: str | None = None) -> str | None:
         path = os.environ.get(
             "SMIBJAX_CACHE_DIR", str(Path.home() / ".cache" / "smibjax" / "jax")
         )
+    global CACHE_PROBLEM
+    CACHE_PROBLEM = None
     if path and not _usable_folder(Path(path)):
-        import sys
-
-        print(
-            f"smibjax: warning: the compilation cache {str(path)!r} is not a "
-            "writable folder: running without it (set SMIBJAX_CACHE_DIR to a folder, "
-            "or to '' to turn the cache off)",
-            file=sys.stderr,
+        # said on the phase line before the first compile (`cache_state`), not now:
+        # a command that refuses its input then still prints one line
+        CACHE_PROBLEM = (
+            f"{str(path)!r} is not a writable folder, running without it; set "
+            "SMIBJAX_CACHE_DIR to a folder, or to '' to turn the cache off"
         )
         return None
     if path:
@@ -138,14 +143,15 @@ def configure(
 
 def cache_state(*programs: str) -> str:
     """The persistent compilation cache as seen before a compile: "off" (no cache
-    folder configured), "warm" (the folder holds an entry of one of `programs`, the
-    names JAX gives the jitted functions, e.g. "jit__simulate"; a call with other
-    shapes or options still compiles), else "cold"."""
+    folder configured; with the reason where the folder asked for was not usable),
+    "warm" (the folder holds an entry of one of `programs`, the names JAX gives the
+    jitted functions, e.g. "jit__simulate"; a call with other shapes or options still
+    compiles), else "cold"."""
     import jax
 
     folder = jax.config.jax_compilation_cache_dir
     if not folder:
-        return "off"
+        return "off" if CACHE_PROBLEM is None else f"off: {CACHE_PROBLEM}"
     try:
         names = os.listdir(folder)
     except OSError:
