@@ -740,7 +740,8 @@ def run_montecarlo(args) -> int:
     (`smibjax.grid.montecarlo`), run in chunks into the run folder --out (default:
     a new folder runs/montecarlo-<time>, as the SMIB's montecarlo): run.json (what
     the run computes and its context), chunks/NNNNNN.npz (each the moment it is
-    computed), then scenarios.csv, summary.json and summary.md. `--resume` finishes
+    computed), then scenarios.csv, summary.json, summary.md and montecarlo.png (as
+    the SMIB's Monte Carlo). `--resume` finishes
     a run from the chunks on disk: the files are those of an uninterrupted run."""
     from .._commandline import out_path, progress_bars, say_compiling
     from .._files import check_out_folder
@@ -793,7 +794,7 @@ def run_montecarlo(args) -> int:
         f"{wall:.1f} s): stable {summary['stable_fraction']}, settling mean "
         f"{summary['settling_angle_s']['mean']} s"
     )
-    print(f"wrote {out}/scenarios.csv, summary.json, summary.md")
+    print(f"wrote {out}/scenarios.csv, summary.json, summary.md, montecarlo.png")
     return 0
 
 
@@ -937,6 +938,13 @@ def _grid_finish(out: Path, spec, context: dict, manifest: dict):
     _write_new(out / "scenarios.csv", "\n".join(lines) + "\n")
     _write_new(out / "summary.json", json.dumps(_clean(summary), indent=2) + "\n")
     _write_new(out / "summary.md", _grid_summary_md(summary, spec, context))
+    from .plotting import plot_grid_montecarlo
+
+    plot_grid_montecarlo(
+        rows,
+        out / "montecarlo.png",
+        f"{context.get('case', '')}: {len(rows['index'])} fault scenarios",
+    )
     write_json(out / "run.json", manifest | {"complete": True})
     return rows, summary
 

@@ -230,10 +230,12 @@ def plot_trajectory(
     save_figure(fig, path)
 
 
-def plot_montecarlo(rows: dict[str, np.ndarray], path, title: str = "") -> None:
-    """Histograms of delta settling time and overshoot (stable scenarios) and the
-    stability/settling map over (fault time, clearing duration): colour = settling
-    time, red x = unstable."""
+def plot_montecarlo(
+    rows: dict[str, np.ndarray], path, title: str = "", angle: str = "delta"
+) -> None:
+    """Histograms of the settling time of `angle` and the overshoot (stable
+    scenarios) and the stability/settling map over (fault time, clearing duration):
+    colour = settling time, red x = unstable."""
     stable = rows["stable"].astype(bool)
     ts = rows["settling_time"]
     fig, axes = subplots(1, 3, figsize=(15, 4.3))
@@ -241,7 +243,7 @@ def plot_montecarlo(rows: dict[str, np.ndarray], path, title: str = "") -> None:
     good = stable & np.isfinite(ts)
     if good.any():
         ax.hist(ts[good], bins=40, color="C0")
-    ax.set_xlabel("delta settling time from fault (s)")
+    ax.set_xlabel(f"{angle} settling time from fault (s)")
     ax.set_ylabel("scenarios")
     ax.set_title(f"settling ({good.sum()} stable of {stable.size})")
     ax = axes[1]
@@ -745,3 +747,23 @@ def plot_case_compare(rows: dict[str, dict], ccts: dict, path, title: str = "") 
         fig.suptitle(title, fontsize=10)
     fig.tight_layout()
     save_figure(fig, path)
+
+
+def plot_grid_montecarlo(rows: dict[str, np.ndarray], path, title: str = "") -> None:
+    """A grid Monte Carlo's figure, as the SMIB's (`plot_montecarlo`): settling of
+    the angles from the centre of inertia (s; inf: not settled, left out of the
+    histogram), overshoot (rad) and the stability/settling map over (fault time,
+    clearing duration) (s), from the rows of `scenarios.csv`."""
+    plot_montecarlo(
+        {
+            "stable": np.asarray(rows["stable"]).astype(bool),
+            "settling_time": np.asarray(rows["settling_angle"], dtype=float),
+            "overshoot": np.asarray(rows["overshoot"], dtype=float),
+            "t_fault": np.asarray(rows["t_fault"], dtype=float),
+            "clear_duration": np.asarray(rows["t_clear"], dtype=float)
+            - np.asarray(rows["t_fault"], dtype=float),
+        },
+        path,
+        title,
+        angle="COI angle",
+    )
