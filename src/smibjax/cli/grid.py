@@ -810,23 +810,14 @@ def _grid_chunk_path(out: Path, k: int) -> Path:
 
 
 def _grid_chunk_ok(out: Path, spec, k: int) -> bool:
-    """Chunk k is on disk and whole (it loads and holds its scenario range in every
-    column); one that is not is recomputed."""
+    """Chunk k is on disk and whole (`runs.chunk_is_whole`); one that is not is
+    recomputed."""
     from ..grid.montecarlo import METRIC_COLUMNS
+    from .runs import chunk_is_whole
 
-    path = _grid_chunk_path(out, k)
-    if not path.is_file():
-        return False
     start, stop = spec.chunk_range(k)
-    try:
-        with np.load(path) as z:
-            cols = {c: np.asarray(z[c]) for c in z.files}
-    except Exception:  # a truncated zip raises BadZipFile, EOFError, ValueError...
-        return False
     must = ("index", "t_fault", "t_clear", *METRIC_COLUMNS)
-    return all(
-        c in cols and cols[c].shape == (stop - start,) for c in must
-    ) and np.array_equal(cols["index"], np.arange(start, stop))
+    return chunk_is_whole(_grid_chunk_path(out, k), start, stop, must)
 
 
 def _check_grid_resume(out: Path, manifest: dict) -> None:

@@ -109,19 +109,25 @@ def _chunk_path(out: Path, k: int) -> Path:
 
 
 def _chunk_ok(out: Path, spec: MonteCarloSpec, k: int) -> bool:
-    """Chunk k is on disk and whole: it loads, and holds the rows of its scenario
-    range in every column. A chunk that is not (truncated or damaged by something
-    other than this program's atomic writes) is recomputed."""
-    path = _chunk_path(out, k)
+    """Chunk k is on disk and whole (`chunk_is_whole`); older chunks lack the
+    budget_exhausted column."""
+    start, stop = spec.chunk_range(k)
+    must = [c for c in COLUMNS if c != "budget_exhausted"]
+    return chunk_is_whole(_chunk_path(out, k), start, stop, must)
+
+
+def chunk_is_whole(path: Path, start: int, stop: int, must) -> bool:
+    """A Monte Carlo chunk file (SMIB or grid) is on disk and whole: it loads, holds
+    the rows start..stop-1 in every column of `must`, and its `index` column is that
+    range. A chunk that is not (truncated or damaged by something other than the
+    atomic writes) is recomputed."""
     if not path.is_file():
         return False
-    start, stop = spec.chunk_range(k)
     try:
         with np.load(path) as z:
             cols = {c: np.asarray(z[c]) for c in z.files}
     except Exception:  # a truncated zip raises BadZipFile, EOFError, ValueError...
         return False
-    must = [c for c in COLUMNS if c != "budget_exhausted"]  # older chunks lack it
     return all(
         c in cols and cols[c].shape == (stop - start,) for c in must
     ) and np.array_equal(cols["index"], np.arange(start, stop))
