@@ -61,11 +61,9 @@ MUTANTS = [
     # -- the stop-gradient on step lengths (_stepping.py) --------------------------
     Mutant(
         "rigidsteps-removed",
-        "src/smibjax/_simulate.py",
-        "        RigidSteps(\n"
-        "            dfx.PIDController(rtol=rtol, atol=atol, norm=_RmsDynamic(loop.n_dynamic))\n"
-        "        ),",
-        "        dfx.PIDController(rtol=rtol, atol=atol, norm=_RmsDynamic(loop.n_dynamic)),",
+        "src/smibjax/_solve.py",
+        "        RigidSteps(pid), jump_ts=jumps if has_jumps else None",
+        "        pid, jump_ts=jumps if has_jumps else None",
         (f"{GRAD}::test_state_sensitivity_to_clearing_time_across_reclosure",),
         "the adaptive controller without RigidSteps: d/dt_clear wrong after t_reclose",
     ),
@@ -601,8 +599,8 @@ MUTANTS = [
     Mutant(
         "controls-equilibrium-sexs",
         "src/smibjax/grid/devices/sexs.py",
-        'ref = meas["Vt"] - meas["Vs"] + y0 / self.K',
-        'ref = meas["Vt"] + y0 / self.K',
+        'ref = regulated(meas) - meas["Vs"] + y0 / self.K',
+        "ref = regulated(meas) + y0 / self.K",
         (f"{CONTROLS}::test_init_is_an_equilibrium",),
         "SEXS's Vref without the stabilizer's rest value: init is not at rest",
     ),
