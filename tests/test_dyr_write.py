@@ -16,7 +16,7 @@ from smibjax.grid.psse import PsseError, _split, read_dyr
 ROOT = Path(__file__).resolve().parent.parent
 
 # comments after '/', an '@!' line, records spanning lines, ANDES's E-notation, a
-# record of a model smibjax does not read (IEEEG1), a ',,' field, a CRLF line
+# record of a model smibjax does not read (WT3G1), a ',,' field, a CRLF line
 SMALL = (
     "@! a PSS/E comment line, 'IEEEST' 1 1 / not a record\n"
     "  1 'GENROU' 1   8.0000   0.030000   0.40000   0.050000\n"
@@ -25,7 +25,7 @@ SMALL = (
     "  1 'IEEEST' 1   1   0   0.0   0.0   0.0   0.0   0.0   0.0\n"
     "       0.50000E-01   0.020000   3.0000   5.4000   10.000   10.000\n"
     "       20.000   0.20000   -0.20000   0.0000   0.0000  / PSS: 'KS' = 20 / TW\r\n"
-    "  1 'IEEEG1' 1   0   0   20.000   0.10000  /  unsupported, kept\n"
+    "  1 'WT3G1' 1   0   0   20.000   0.10000  /  unsupported, kept\n"
     "  2 'GENCLS' 1   5.0000,,   0.0000  / a ',,' field\n"
     "  2 'IEEEST' 1   1   0   0.0   0.0   0.0   0.0   0.0   0.0   0.05   0.02\n"
     "       3.0   5.4   10.0   10.0   20.0   0.2   -0.2   0.0   0.0 /\n"
@@ -41,7 +41,7 @@ def small(tmp_path):
 
 def _read(path):
     with warnings.catch_warnings():
-        warnings.simplefilter("ignore")  # IEEEG1 skipped
+        warnings.simplefilter("ignore")  # WT3G1 skipped
         return read_dyr(path, skip_unsupported=True)
 
 
@@ -127,7 +127,7 @@ def test_andes_record_and_icon(tmp_path):
     "updates,message",
     [
         ({("IEEEST", 1, "1"): {"KQ": 1.0}}, "IEEEST record has no parameter 'KQ'"),
-        ({("IEEEG1", 1, "1"): {"K": 1.0}}, "dyr model 'IEEEG1' is not one smibjax"),
+        ({("WT3G1", 1, "1"): {"K": 1.0}}, "dyr model 'WT3G1' is not one smibjax"),
         (
             {("IEEEST", 9, "1"): {"KS": 1.0}},
             "no IEEEST record for generator '1' at bus 9",
