@@ -607,3 +607,72 @@ def test_recorded_coi_angles_leave_a_tripped_machine_out():
         live = on[k] > 0
         assert abs(np.sum(w[live] * rel[k, live])) < 1e-12 * np.sum(w[live])
     assert abs(rel[4, 1] - (delta[4, 1] - w[1:] @ delta[4, 1:] / w[1:].sum())) < 1e-12
+
+
+def _simulate_args(*flags):
+    from smibjax.cli import _parser
+
+    args = _parser().parse_args(["simulate", "--case", "kundur-gencls", *flags])
+    args.argv = ["simulate", "--case", "kundur-gencls", *flags]
+    return args
+
+
+def test_a_bus_fault_cleared_by_opening_a_line():
+    """`--fault-bus B --open-line A-B[:CKT]` (issue 47, events): the fault at bus 7
+    from --fault-time to --clear-time, and circuit 1 of the 7-8 tie opened at the
+    clearing (and left open); the events in switch order, positions resolved."""
+    from smibjax.cli.grid import events_from_args, refuse_smib_flags
+    from smibjax.grid.case import load_case
+    from smibjax.grid.events import BranchTrip, BusFault
+
+    case = load_case("kundur-gencls")
+    args = _simulate_args(
+        "--fault-bus", "7", "--open-line", "7-8:1", "--fault-time", "1",
+        "--clear-time", "1.1", "--t-end", "5",
+    )  # fmt: skip
+    refuse_smib_flags(args)
+    ev = events_from_args(case, args)
+    assert [type(e) for e in ev] == [BusFault, BranchTrip]
+    assert int(ev[0].bus) == case.system.bus_index(7) and float(ev[0].t_off) == 1.1
+    br = case.system.branches
+    num = np.asarray(case.system.buses.number)
+    k = int(ev[1].branch)
+    assert {int(num[br.fr[k]]), int(num[br.to[k]])} == {7, 8}
+    assert float(ev[1].t) == 1.1
+
+
+@pytest.mark.parametrize(
+    "flags, needle",
+    [
+        (
+            ("--open-line", "7-8", "--trip-gen", "1"),
+            "--open-line is not allowed without",
+        ),
+        (
+            ("--trip-gen", "1", "--clear-time", "2"),
+            "--clear-time is not allowed without",
+        ),
+        (("--fault-bus", "7", "--open-line", "7-99"), "branch 7-99 does not exist"),
+    ],
+)
+def test_event_flags_that_do_not_fit_are_one_line(flags, needle):
+    from smibjax.cli.grid import events_from_args, refuse_smib_flags
+    from smibjax.cli.options import CLIError
+    from smibjax.grid.case import load_case
+
+    args = _simulate_args(*flags)
+    with pytest.raises(CLIError, match=needle):
+        refuse_smib_flags(args)
+        events_from_args(load_case("kundur-gencls"), args)
+
+
+def test_a_trip_needs_no_clearing_time():
+    """`--trip-gen` (and `--trip-line`) at --fault-time needs no --clear-time: a
+    trip at 2 s with the default clearing time (before it) was refused."""
+    from smibjax.cli.grid import events_from_args
+    from smibjax.grid.case import load_case
+    from smibjax.grid.events import GenTrip
+
+    args = _simulate_args("--trip-gen", "1", "--fault-time", "2", "--t-end", "5")
+    ev = events_from_args(load_case("kundur-gencls"), args)
+    assert [type(e) for e in ev] == [GenTrip] and float(ev[0].t) == 2.0

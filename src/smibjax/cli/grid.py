@@ -3,9 +3,12 @@ FILE.dyr`): `simulate`, `montecarlo` and `cct` hand over here when `--case` is g
 
 Events from the command line (times in s, buses and branches by PSS/E numbers):
 `--fault-bus B` (a three-phase fault at bus B from --fault-time to --clear-time,
-through --fault-reactance), `--fault-line A-B[:CKT]` (a fault at --fault-location
-along the line, cleared by opening it at --clear-time; `--reclose` recloses it at
---reclose-time), `--trip-line A-B[:CKT]` and `--trip-gen BUS[:ID]` (at --fault-time).
+through --fault-reactance; with `--open-line A-B[:CKT]` it is cleared by opening that
+line at --clear-time), `--fault-line A-B[:CKT]` (a fault at --fault-location along the
+line, cleared by opening it at --clear-time; `--reclose` recloses it at
+--reclose-time), `--trip-line A-B[:CKT]` and `--trip-gen BUS[:ID]` (at --fault-time;
+no clearing time). A flag whose event is absent (`--open-line` without `--fault-bus`,
+`--clear-time` without a fault) is refused in one line.
 """
 
 from __future__ import annotations
@@ -163,7 +166,15 @@ def add_case_options(p, events: bool = True) -> None:
             action="store_true",
             help="reclose --fault-line at --reclose-time",
         )
-        g.add_argument("--trip-line", metavar="A-B[:CKT]", help="open a line")
+        g.add_argument(
+            "--open-line",
+            metavar="A-B[:CKT]",
+            help="with --fault-bus: clear the fault by opening this line at "
+            "--clear-time (the fault is removed and the line stays open)",
+        )
+        g.add_argument(
+            "--trip-line", metavar="A-B[:CKT]", help="open a line at --fault-time"
+        )
         g.add_argument("--trip-gen", metavar="BUS[:ID]", help="trip a generator")
 
 
@@ -257,6 +268,12 @@ def refuse_smib_flags(args) -> None:
             ("--reclose", "--fault-line", bool(args.fault_line)),
             ("--reclose-time", "--reclose", bool(args.reclose)),
             ("--fault-location", "--fault-line", bool(args.fault_line)),
+            ("--open-line", "--fault-bus", args.fault_bus is not None),
+            (
+                "--clear-time",
+                "a fault (--fault-bus or --fault-line)",
+                args.fault_bus is not None or bool(args.fault_line),
+            ),
         )
         for flag, needed, have in needs:
             if given(args, flag) and not have:
@@ -304,10 +321,15 @@ def events_from_args(case, args) -> tuple:
 
     sys_ = case.system
     t_on, t_off = args.fault_time, args.clear_time
-    if not (0 <= t_on < t_off < args.t_end):
+    faulted = args.fault_bus is not None or bool(args.fault_line)
+    if faulted and not (0 <= t_on < t_off < args.t_end):
         raise CLIError(
             f"--fault-time {t_on} and --clear-time {t_off} must satisfy 0 <= fault < "
             f"clear < --t-end {args.t_end}"
+        )
+    if not (0 <= t_on < args.t_end):  # a trip alone: no clearing time
+        raise CLIError(
+            f"--fault-time {t_on} must satisfy 0 <= time < --t-end {args.t_end}"
         )
     if not 0 <= args.fault_reactance < math.inf:
         raise CLIError(
@@ -325,6 +347,11 @@ def events_from_args(case, args) -> tuple:
                     x=args.fault_reactance,
                 )
             )
+        if args.open_line:  # the bus fault cleared by opening a line
+            k = int(
+                branch_positions(sys_, [_branch_spec(args.open_line, "--open-line")])[0]
+            )
+            ev.append(BranchTrip(branch=k, t=t_off))
         if args.fault_line:
             k = int(
                 branch_positions(sys_, [_branch_spec(args.fault_line, "--fault-line")])[
