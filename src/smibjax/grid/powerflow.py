@@ -241,13 +241,23 @@ def _power_flow(system, flat, *, tol, max_iter, branch_status):
     n = system.n_bus
     va, vm = sol.value[:n], sol.value[n:]
     inj = _injection(Y, va, vm)
+    solved = sol.result == optx.RESULTS.successful
+    return result_of(system, s, va, vm, inj, sol.stats["num_steps"], solved, tol)
+
+
+def result_of(system, s, va, vm, inj, iterations, solved, tol) -> PowerFlowResult:
+    """The `PowerFlowResult` of a Newton iterate (angles va in rad, magnitudes vm in
+    pu, bus injections inj in pu): the mismatches (pu) of the scheduled P and Q, the
+    largest and its bus, the generators' outputs; converged where the solver says
+    `solved` and the largest mismatch is within `tol` (pu). Shared by the dense and
+    the sparse solvers."""
+    n = system.n_bus
     dp = jnp.where(s.slack, 0.0, jnp.real(inj) - s.p_sched)
     dq = jnp.where(s.fixed_v, 0.0, jnp.imag(inj) - s.q_sched)
     d = jnp.concatenate([dp, dq])
     worst = jnp.argmax(jnp.where(jnp.isnan(d), jnp.inf, jnp.abs(d)))
     mismatch = d[worst]
     p_gen, q_gen, p_slack = _generators(system, s, inj)
-    ok = (sol.result == optx.RESULTS.successful) & (jnp.abs(mismatch) <= tol)
     return PowerFlowResult(
         vm=vm,
         va=va,
@@ -259,8 +269,8 @@ def _power_flow(system, flat, *, tol, max_iter, branch_status):
         mismatch=mismatch,
         mismatch_bus=jnp.asarray(system.buses.number)[worst % n],
         mismatch_is_q=worst >= n,
-        iterations=sol.stats["num_steps"],
-        converged=ok,
+        iterations=iterations,
+        converged=solved & (jnp.abs(mismatch) <= tol),
     )
 
 

@@ -26,7 +26,8 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from .powerflow import PowerFlowResult, Start, _generators, _schedule, _start
+from .._errors import ParameterError
+from .powerflow import PowerFlowResult, Start, _schedule, _start, result_of
 from .system import System
 from .ybus import branch_admittances
 
@@ -202,7 +203,7 @@ def power_flow_sparse(
     (scenarios one after another); reverse-mode differentiable (implicit function
     theorem) in the loads, generation, set points and network parameters."""
     if start not in ("case", "flat"):
-        raise ValueError(f"power flow: start {start!r} is not 'case' or 'flat'")
+        raise ParameterError(f"power flow: start {start!r} is not 'case' or 'flat'")
     system = jax.tree.map(jnp.asarray, system)
     return _power_flow_sparse(system, jnp.asarray(start == "flat"), tol, max_iter)
 
@@ -217,23 +218,4 @@ def _power_flow_sparse(system, flat, tol, max_iter) -> PowerFlowResult:
     va, vm = x[:n], x[n:]
     v = vm * jnp.exp(1j * va)
     inj = v * jnp.conj(_current(net, v))
-    dp = jnp.where(s.slack, 0.0, jnp.real(inj) - s.p_sched)
-    dq = jnp.where(s.fixed_v, 0.0, jnp.imag(inj) - s.q_sched)
-    d = jnp.concatenate([dp, dq])
-    worst = jnp.argmax(jnp.where(jnp.isnan(d), jnp.inf, jnp.abs(d)))
-    mismatch = d[worst]
-    p_gen, q_gen, p_slack = _generators(system, s, inj)
-    return PowerFlowResult(
-        vm=vm,
-        va=va,
-        p_gen=p_gen,
-        q_gen=q_gen,
-        p_slack=p_slack,
-        dp=dp,
-        dq=dq,
-        mismatch=mismatch,
-        mismatch_bus=jnp.asarray(system.buses.number)[worst % n],
-        mismatch_is_q=worst >= n,
-        iterations=steps,
-        converged=done & (jnp.abs(mismatch) <= tol),
-    )
+    return result_of(system, s, va, vm, inj, steps, done, tol)
