@@ -22,21 +22,16 @@ from __future__ import annotations
 
 import dataclasses
 import hashlib
-import json
-import os
-import struct
 from pathlib import Path
 from types import SimpleNamespace
 
-__all__ = ["run", "observe", "LAST_PATH"]
+from .. import _stored
 
-FORMAT = b"smibjax-exported/1\n"
-FOLDER = "smibjax-exported"
+__all__ = ["run", "observe", "run_grid", "LAST_PATH"]
+
 LAST_PATH: str | None = None
 """How the last `run` in this process computed: "stored" (a stored program),
 "exported" (traced, exported and stored now), "traced" (the library's path)."""
-
-_SOURCE_HASH: str | None = None
 
 
 def observe(traj):
@@ -61,7 +56,7 @@ def run(gains, fault, plant, op, init, solver, save):
     from .._inputs import simulate_inputs
 
     inputs = simulate_inputs(gains, fault, plant, op, init, None, solver, save)
-    folder = _folder()
+    folder = _stored.folder()
     if folder is not None:
         try:
             out = _run_stored(folder, inputs)
@@ -71,17 +66,6 @@ def run(gains, fault, plant, op, init, solver, save):
             return out
     LAST_PATH = "traced"
     return _traced(inputs)
-
-
-def _folder() -> Path | None:
-    """The folder of the stored programs, inside the compilation cache's folder;
-    None when the cache is off or SMIBJAX_EXPORTED=0."""
-    import jax
-
-    if os.environ.get("SMIBJAX_EXPORTED", "1").strip() == "0":
-        return None
-    cache = jax.config.jax_compilation_cache_dir
-    return Path(cache) / FOLDER if cache else None
 
 
 def _traced(inputs):
@@ -128,51 +112,15 @@ def _split(inputs):
     statics = _statics(solver, save)
     text = "\n".join(
         [
-            FORMAT.decode().strip(),
             str(treedef),
             str(static_def),
             repr(static_leaves),
-            repr([(tuple(x.shape), str(x.dtype), bool(_weak(x))) for x in leaves]),
+            repr([(tuple(x.shape), str(x.dtype), _stored.weak(x)) for x in leaves]),
             repr(sorted((k, repr(v)) for k, v in statics.items())),
-            _versions(),
-            f"EQX_ON_ERROR={os.environ.get('EQX_ON_ERROR', '')}",
-            f"x64={jax.config.jax_enable_x64}",
-            _source_hash(),
+            *_stored.environment(),
         ]
     )
     return leaves, treedef, static, text
-
-
-def _weak(x) -> bool:
-    return getattr(x, "weak_type", False)
-
-
-def _versions() -> str:
-    """The versions of the packages that build the programs."""
-    import importlib.metadata as md
-
-    import jax
-    import jaxlib
-
-    names = ("equinox", "diffrax", "lineax", "optimistix")
-    return " ".join(
-        [f"jax={jax.__version__}", f"jaxlib={jaxlib.__version__}"]
-        + [f"{n}={md.version(n)}" for n in names]
-    )
-
-
-def _source_hash() -> str:
-    """sha256 of smibjax's source files (their paths inside the package and
-    their bytes)."""
-    global _SOURCE_HASH
-    if _SOURCE_HASH is None:
-        root = Path(__file__).resolve().parents[1]  # the smibjax package
-        h = hashlib.sha256()
-        for f in sorted(root.rglob("*.py")):
-            h.update(f.relative_to(root).as_posix().encode() + b"\0")
-            h.update(f.read_bytes() + b"\0")
-        _SOURCE_HASH = h.hexdigest()
-    return _SOURCE_HASH
 
 
 def _run_stored(folder: Path, inputs):
@@ -185,17 +133,17 @@ def _run_stored(folder: Path, inputs):
     leaves, treedef, static, text = _split(inputs)
     key = hashlib.sha256(text.encode()).hexdigest()
     path = folder / f"{key}.bin"
-    stored = _read(path, key)
+    stored = _stored.read(path, key, 2)
     if stored is None:
         stored = _export(inputs, leaves, treedef, static, key)
-        _write(path, stored)
+        _stored.write(path, stored)
         LAST_PATH = "exported"
     else:
         LAST_PATH = "stored"
     header, sim_blob, obs_blob = stored
     from jax import export
 
-    with _no_lapack(not header["lapack"]):
+    with _stored.no_lapack(not header["lapack"]):
         sim = export.deserialize(bytearray(sim_blob))
         outs = sim.call(*leaves)
         obs = export.deserialize(bytearray(obs_blob))
@@ -234,10 +182,7 @@ def _export(inputs, leaves, treedef, static, key):
         traj = simulate_fn(*args, **statics)
         return tuple(getattr(traj, k) for k in names)
 
-    def spec(x):
-        return jax.ShapeDtypeStruct(x.shape, x.dtype, weak_type=_weak(x))
-
-    sim_exp = export.export(jax.jit(sim), platforms=["cpu"])(*map(spec, leaves))
+    sim_exp = export.export(jax.jit(sim), platforms=["cpu"])(*map(_stored.spec, leaves))
     array_names: list[str] = []
 
     def obs(*outs):
@@ -260,63 +205,57 @@ def _export(inputs, leaves, treedef, static, key):
     return header, sim_blob, obs_blob
 
 
-def _read(path: Path, key: str):
-    """(header, blob, blob) stored at `path` for `key`; None when there is none
-    (or another key's, or a damaged file)."""
-    try:
-        data = path.read_bytes()
-    except OSError:
-        return None
-    if not data.startswith(FORMAT):
-        return None
-    parts, at = [], len(FORMAT)
-    for _ in range(3):
-        if at + 8 > len(data):
-            return None
-        (n,) = struct.unpack_from("<Q", data, at)
-        parts.append(data[at + 8 : at + 8 + n])
-        at += 8 + n
-    if at != len(data) or any(not p for p in parts):
-        return None
-    header = json.loads(parts[0])
-    if header.get("key") != key:
-        return None
-    return header, parts[1], parts[2]
+# ---- the grid's `simulate --case` ----
 
 
-def _write(path: Path, stored) -> None:
-    """Store (header, blob, blob) at `path` atomically (`_files.atomic_write`); a
-    folder that cannot be written is skipped (the run goes on without it)."""
-    from .._files import atomic_write
+def _grid_program(case, vm, va, p_gen, q_gen, events, t_first, **options):
+    """From a case's power flow to its run's trajectory and metrics: every device
+    at its equilibrium (`initialize`), the run (`simulate_case`), the metrics
+    (`grid_metrics`), as one flat dict ("traj.NAME", "metrics.NAME")."""
+    from ..grid.loop import initialize
+    from ..grid.metrics import grid_metrics
+    from ..grid.simulate import simulate_case
 
-    header, *blobs = stored
-    parts = [json.dumps(header).encode(), *blobs]
-    data = FORMAT + b"".join(struct.pack("<Q", len(p)) + p for p in parts)
-    try:
-        atomic_write(path, lambda tmp: Path(tmp).write_bytes(data), new=False)
-    except OSError:
-        pass
+    op = initialize(case, vm, va, p_gen, q_gen)
+    tr = simulate_case(case, op, events, **options)
+    m = grid_metrics(case, tr, t_first)
+    out = {f"traj.{k}": getattr(tr, k) for k in tr.__dataclass_fields__}
+    fields = [k for k in m.__dataclass_fields__ if getattr(m, k) is not None]
+    return out | {f"metrics.{k}": getattr(m, k) for k in fields}
 
 
-class _no_lapack:
-    """Within the block (when `skip`), calling an exported program does not set up
-    jaxlib's LAPACK routines (which imports SciPy): for programs that call none."""
+_GRID = None
 
-    def __init__(self, skip: bool):
-        self.skip = skip
-        self.saved = None
 
-    def __enter__(self):
-        if self.skip:
-            from jax._src.export import _export
+def run_grid(case, pf, events, t_first: float, before_trace=None, **options):
+    """`simulate --case`'s run from the power flow `pf` of `case` (already scaled):
+    (GridTrajectory, GridMetrics), from a stored program when one of this
+    structure exists (`smibjax._stored`); `before_trace()` is called first when the
+    program must be traced (the phase line). Concrete events are checked first."""
+    import jax.numpy as jnp
 
-            self.saved = _export._ensure_backends_initialized
-            _export._ensure_backends_initialized = lambda platforms: None
-        return self
+    from ..grid.events import check_events
+    from ..grid.metrics import GridMetrics
+    from ..grid.trajectory import GridTrajectory
 
-    def __exit__(self, *exc):
-        if self.saved is not None:
-            from jax._src.export import _export
-
-            _export._ensure_backends_initialized = self.saved
-        return False
+    global _GRID
+    if _GRID is None:
+        _GRID = _stored.stored_jit(_grid_program, "grid.simulate")
+    check_events(case, events)
+    # (the events' times and impedances are arrays: arguments of the program, so a
+    # run with other times reuses it; their positions are part of its structure)
+    out = _GRID(
+        case,
+        pf.vm,
+        pf.va,
+        pf.p_gen,
+        pf.q_gen,
+        events,
+        jnp.asarray(t_first, dtype=jnp.float64),
+        before_trace=before_trace,
+        **options,
+    )
+    part = lambda tag: {  # noqa: E731
+        k.split(".", 1)[1]: v for k, v in out.items() if k.startswith(tag)
+    }
+    return GridTrajectory(**part("traj.")), GridMetrics(**part("metrics."))

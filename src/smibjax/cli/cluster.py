@@ -38,7 +38,7 @@ from collections.abc import Iterable, Iterator
 from .._montecarlo import MonteCarloSpec, compute_chunk
 from .._parameters import ParameterError
 
-__all__ = ["DaskRunner", "dask_runner", "chunk_key", "worker_env"]
+__all__ = ["DaskRunner", "dask_runner", "chunk_key", "worker_env", "run_grid_chunk"]
 
 _MISSING = (
     "--workers/--scheduler need the cluster extra: pip install 'smibjax[cluster]'"
@@ -116,6 +116,15 @@ def _run_chunk(spec: MonteCarloSpec, k: int) -> dict:
     return compute_chunk(spec, k)
 
 
+def run_grid_chunk(job, k: int) -> dict:
+    """The grid's Dask task: the rows of chunk k of a `grid.montecarlo.GridChunkJob`,
+    computed in the worker process (its case rebuilt there once)."""
+    from ..grid.montecarlo import grid_chunk
+
+    _setup_worker()
+    return grid_chunk(job, k)
+
+
 def chunk_key(spec: MonteCarloSpec, k: int) -> str:
     """The Dask key of chunk k of `spec`: the same in every process and session, so a
     resubmitted chunk is the same task."""
@@ -125,12 +134,15 @@ def chunk_key(spec: MonteCarloSpec, k: int) -> str:
 
 
 class DaskRunner:
-    """A `run_montecarlo` runner on a Dask `client`: `runner(spec, chunks)` submits one
-    task per chunk and yields `(k, rows)` as tasks complete (any order)."""
+    """A Monte Carlo runner on a Dask `client`: `runner(spec, chunks)` submits one
+    task per chunk and yields `(k, rows)` as tasks complete (any order). `task(spec,
+    k)` computes a chunk in a worker: the SMIB's `compute_chunk` by default, or
+    `run_grid_chunk` for a grid job (`grid.montecarlo.GridChunkJob`) as `spec`."""
 
-    def __init__(self, client, retries: int = 3):
+    def __init__(self, client, retries: int = 3, task=None):
         self.client = client
         self.retries = retries
+        self.task = _run_chunk if task is None else task
 
     def __call__(
         self, spec: MonteCarloSpec, chunks: Iterable[int]
@@ -140,7 +152,7 @@ class DaskRunner:
         futures = {}
         for k in chunks:
             fut = self.client.submit(
-                _run_chunk,
+                self.task,
                 spec,
                 k,
                 key=chunk_key(spec, k),
@@ -164,12 +176,16 @@ class DaskRunner:
 
 @contextlib.contextmanager
 def dask_runner(
-    scheduler: str | None = None, workers: int | None = None, *, retries: int = 3
+    scheduler: str | None = None,
+    workers: int | None = None,
+    *,
+    retries: int = 3,
+    task=None,
 ) -> Iterator[DaskRunner]:
     """A runner on Dask: `workers=N` starts a local cluster of N single-threaded worker
     processes (closed on exit; 1 <= N <= the CPU count); `scheduler=ADDRESS`
     connects to a running scheduler. The runner's `client` is the
-    `distributed.Client`."""
+    `distributed.Client`; `task` as `DaskRunner`'s."""
     if (scheduler is None) == (workers is None):
         raise ParameterError("give a Dask scheduler address or a number of workers")
     cpus = os.cpu_count() or 1
@@ -203,4 +219,4 @@ def dask_runner(
                     f"--scheduler {scheduler!r}: cannot connect to a Dask scheduler "
                     f"there ({type(e).__name__}: {e})"
                 ) from None
-        yield DaskRunner(client, retries=retries)
+        yield DaskRunner(client, retries=retries, task=task)

@@ -13,6 +13,7 @@ no clearing time). A flag whose event is absent (`--open-line` without `--fault-
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import json
 import math
@@ -219,7 +220,7 @@ _SMIB_FLAGS = (
 )
 SMIB_ONLY = {
     "simulate": _SMIB_FLAGS,
-    "montecarlo": (*_SMIB_FLAGS, "--dist", "--scheduler", "--workers"),
+    "montecarlo": (*_SMIB_FLAGS, "--dist"),
     "cct": (
         *_SMIB_FLAGS,
         "--fault-location",
@@ -280,11 +281,12 @@ def refuse_smib_flags(args) -> None:
                 raise CLIError(f"{flag} is not allowed without {needed} on a case")
 
 
-def load(args):
+def load(args, initialize: bool = True):
     """(case, operating point, power flow) from the arguments; CLIError on bad
-    input (one line)."""
+    input (one line). Without `initialize`, the operating point is None and the
+    case is the one the power flow solved (loads scaled by --load-factor)."""
     from ..grid.case import CaseError
-    from ..grid.operating import operating_point
+    from ..grid.operating import operating_point, scaled_power_flow
     from ..grid.params import ParamError, set_params
     from ..grid.powerflow import PowerFlowError
     from ..grid.psse import PsseError
@@ -303,7 +305,11 @@ def load(args):
         params = _params(args.param)
         if params:
             case = set_params(case, params)
-        op, pf = operating_point(case, args.load_factor, args.load_factor)
+        if initialize:
+            op, pf = operating_point(case, args.load_factor, args.load_factor)
+        else:
+            op = None
+            case, pf = scaled_power_flow(case, args.load_factor, args.load_factor)
     except (CaseError, PsseError, ParamError, PowerFlowError) as e:
         raise CLIError(str(e)) from None
     except FileNotFoundError as e:
@@ -531,7 +537,7 @@ def coi_record(case, tr) -> np.ndarray:
     """The recorded angles referred to the centre of inertia of the machines in
     service at each sample (rad, (T, n_gen)); a machine tripped during the run is NaN
     from its trip on (its frozen angle has no meaning against the others)."""
-    from ..grid.simulate import coi_angles
+    from ..grid.trajectory import coi_angles
 
     on = np.asarray(tr.gen_on)
     rel = np.asarray(coi_angles(case, tr.delta, tr.gen_on))
@@ -542,13 +548,11 @@ def coi_record(case, tr) -> np.ndarray:
 def run_simulate(args) -> int:
     """`simulate --case`: one run; summary, the trajectory (per-generator and per-bus
     arrays with their PSS/E ids) in the format of the --out suffix, the plot."""
-    import jax.numpy as jnp
 
     from .._export import grid_columns, write_trajectory
     from .._files import check_new_file
     from ..grid.loop import gen_names
-    from ..grid.metrics import grid_metrics
-    from ..grid.simulate import simulate_jit
+    from ._exported import run_grid
     from .simulate import check_out
 
     out = check_out(args.out, args.force) if args.out else None
@@ -557,16 +561,24 @@ def run_simulate(args) -> int:
         from .._figures import check_plot_path
 
         plot = check_new_file(check_plot_path(args.plot), args.force, "--plot")
-    case, op, pf = load(args)
+    case, _, pf = load(args, initialize=False)
     ev = events_from_args(case, args)
     _require_run_fits(case, ev, args)
     print(_describe(case, pf), file=sys.stderr)
     print(f"events: {_event_text(case, ev)}", file=sys.stderr)
-    say_phase(f"the simulation of {_size(case)}", "jit_simulate_jit", compile_s(case))
     t0 = time.perf_counter()
-    tr = simulate_jit(case, op, ev, **_solver_kw(args))
     t_first = min(float(e.switches()[0]) for e in ev)
-    m = grid_metrics(case, tr, jnp.asarray(t_first))
+    # a second run of this structure calls the stored program: no trace, no diffrax
+    tr, m = run_grid(
+        case,
+        pf,
+        ev,
+        t_first,
+        before_trace=lambda: say_phase(
+            f"the simulation of {_size(case)}", "jit__program", compile_s(case)
+        ),
+        **_solver_kw(args),
+    )
     wall = time.perf_counter() - t0
     verdict = (
         "stable"
@@ -803,15 +815,37 @@ def run_montecarlo(args) -> int:
     todo = [k for k in range(spec.n_chunks) if not _grid_chunk_ok(out, spec, k)]
     t0 = time.perf_counter()
     if todo:
-        compute = chunk_runner(case, op, spec)
-        say_compiling("the batched case simulator", "jit_grid_batch_metrics")
         done = spec.n - sum(
             spec.chunk_range(k)[1] - spec.chunk_range(k)[0] for k in todo
         )
-        with progress_bars() as make:  # closed also when a chunk fails
+        with contextlib.ExitStack() as stack:
+            if args.workers is not None or args.scheduler is not None:
+                # chunks on Dask: each worker rebuilds the case from the run's
+                # context once and computes the chunks it is given
+                from ..grid.montecarlo import GridChunkJob
+                from .cluster import dask_runner, run_grid_chunk
+
+                runner = stack.enter_context(
+                    dask_runner(args.scheduler, args.workers, task=run_grid_chunk)
+                )
+                print(
+                    "compiling the batched case simulator in each Dask worker",
+                    file=sys.stderr,
+                    flush=True,
+                )
+                files = [
+                    str(Path(f).resolve()) if f and Path(f).exists() else f
+                    for f in context["case_files"]
+                ]
+                job = GridChunkJob(context | {"case_files": files}, spec)
+                chunks = runner(job, todo)
+            else:
+                compute = chunk_runner(case, op, spec)
+                say_compiling("the batched case simulator", "jit_grid_batch_metrics")
+                chunks = ((k, compute(k)) for k in todo)
+            make = stack.enter_context(progress_bars())  # closed also on a failure
             bar = make(total=n, initial=done, desc="scenarios", unit="sc")
-            for k in todo:
-                rows = compute(k)
+            for k, rows in chunks:
                 _write_chunk(_grid_chunk_path(out, k), rows)
                 bar.update(len(rows["index"]))
     wall = time.perf_counter() - t0

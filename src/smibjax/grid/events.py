@@ -14,6 +14,8 @@ out of time order; under `jit` the order is trusted (draw times in order).
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
@@ -21,6 +23,9 @@ from jaxtyping import Array, Float, Int
 
 from .._errors import ParameterError
 from .._validate import is_concrete, require
+
+if TYPE_CHECKING:
+    from .loop import Case
 
 __all__ = [
     "BusFault",
@@ -31,6 +36,7 @@ __all__ = [
     "Event",
     "switch_times",
     "check_order",
+    "check_events",
     "check_positions",
 ]
 
@@ -201,3 +207,13 @@ def check_positions(events, n_bus: int, n_branch: int, n_gen: int) -> None:
                     np.asarray(p),
                     f"must be a position < {n} (the case has {n} {what})",
                 )
+
+
+def check_events(case: Case, events) -> None:
+    """`ParameterError`/`ValueError` (one line) for concrete events that do not fit
+    the case (a position past its buses, branches or generators) or are out of time
+    order; traced events are trusted. Run before tracing: under `jit` the events'
+    values are not known."""
+    check_order(events)
+    sys_ = case.system
+    check_positions(events, sys_.n_bus, len(sys_.branches.r), case.n_gen)

@@ -31,7 +31,7 @@ from jaxtyping import Array, Bool, Float
 
 from .events import switch_times
 from .loop import Case, Operating
-from .simulate import GridTrajectory, check_events, coi_angles, simulate_case
+from .trajectory import GridTrajectory, coi_angles
 
 __all__ = ["GridMetrics", "grid_metrics", "batch_metrics", "settling_time", "WINDOW"]
 
@@ -147,6 +147,7 @@ def batch_metrics(
     docs/performance.md.
     """
     from .._parallel import shard_batch
+    from .simulate import check_events, simulate_case
 
     rep, static = eqx.partition((case, op), eqx.is_array)
 

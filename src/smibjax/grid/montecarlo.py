@@ -16,6 +16,8 @@ the command line's (`smibjax.cli.grid`): nothing here prints or writes files.
 from __future__ import annotations
 
 import dataclasses
+import functools
+import json
 import math
 
 import jax
@@ -28,6 +30,8 @@ from .scenarios import FaultDistribution, sample_events
 
 __all__ = [
     "GridMonteCarloSpec",
+    "GridChunkJob",
+    "grid_chunk",
     "draw",
     "scenario_rows",
     "chunk_runner",
@@ -190,3 +194,51 @@ def summarize(rows: dict[str, np.ndarray]) -> dict:
         "v_min_pu": _quantiles(np.asarray(rows["v_min"], float)),
         "efd_max_pu": _quantiles(np.asarray(rows["efd_max"], float)),
     }
+
+
+@dataclasses.dataclass(frozen=True)
+class GridChunkJob:
+    """What a process needs to compute chunks of a run on its own (a Dask worker):
+    the run's `spec` and the `context` that rebuilds its case, as plain values:
+    `case_files` ([raw file or built-in case name, dyr file or None]),
+    `skip_unsupported`, `params` (name -> value, `grid.params`) and `load_factor`.
+    Its `to_dict()` names the chunks' Dask keys (`cli.cluster.chunk_key`): another
+    case or parameter set never shares a key."""
+
+    context: dict
+    spec: GridMonteCarloSpec
+
+    @property
+    def seed(self) -> int:
+        return self.spec.seed
+
+    def to_dict(self) -> dict:
+        keep = ("case_files", "skip_unsupported", "params", "load_factor")
+        ctx = {k: self.context.get(k) for k in keep}
+        return json_ready({"context": ctx, "spec": self.spec.to_dict()})
+
+
+@functools.lru_cache(maxsize=2)
+def _prepared(job_text: str):
+    """(case, operating point, chunk function) of a job, once per process."""
+    from .case import load_case
+    from .operating import operating_point
+    from .params import set_params
+
+    job = json.loads(job_text)
+    ctx, spec = job["context"], GridMonteCarloSpec(**job["spec"])
+    raw, dyr = ctx["case_files"]
+    case = load_case(raw, dyr, skip_unsupported=bool(ctx["skip_unsupported"]))
+    if ctx.get("params"):
+        case = set_params(case, ctx["params"])
+    lf = float(ctx.get("load_factor", 1.0))
+    op, _ = operating_point(case, lf, lf)
+    return chunk_runner(case, op, spec)
+
+
+def grid_chunk(job: GridChunkJob, k: int) -> dict[str, np.ndarray]:
+    """The rows of chunk k of `job`, computed in this process from the job alone
+    (the case rebuilt from its files once per process): the rows `chunk_runner`
+    gives in the process that drew the run."""
+    text = json.dumps(job.to_dict(), sort_keys=True)
+    return _prepared(text)(k)

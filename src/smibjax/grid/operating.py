@@ -19,7 +19,12 @@ from .powerflow import (
     solve_power_flow,
 )
 
-__all__ = ["operating_point", "operating_point_traced", "check_islanding"]
+__all__ = [
+    "operating_point",
+    "operating_point_traced",
+    "scaled_power_flow",
+    "check_islanding",
+]
 
 
 def operating_point(
@@ -27,16 +32,25 @@ def operating_point(
 ) -> tuple[Operating, PowerFlowResult]:
     """(Operating, power flow) of `case` with its loads and non-slack generation
     scaled by the factors (1: the raw file's)."""
-    system = case.system
-    if load_factor != 1.0 or gen_factor != 1.0:
-        system = scale_operating_point(system, load_factor, gen_factor)
-    pf = solve_power_flow(system)
-    scaled = _with_system(case, system)
+    scaled, pf = scaled_power_flow(case, load_factor, gen_factor)
     # one compiled program, not a hundred one-operation ones run eagerly (the case's
     # index arrays stay concrete in the closure)
     init = jax.jit(lambda vm, va, p, q: initialize(scaled, vm, va, p, q))
     op = init(pf.vm, pf.va, pf.p_gen, pf.q_gen)
     return op, pf
+
+
+def scaled_power_flow(
+    case: Case, load_factor: float = 1.0, gen_factor: float = 1.0
+) -> tuple[Case, PowerFlowResult]:
+    """(`case` with its loads and non-slack generation scaled by the factors, its
+    power flow) on the host: `PowerFlowError` (one line) if Newton fails. The
+    devices are not initialized (`initialize` does that from the power flow)."""
+    system = case.system
+    if load_factor != 1.0 or gen_factor != 1.0:
+        system = scale_operating_point(system, load_factor, gen_factor)
+    pf = solve_power_flow(system)
+    return _with_system(case, system), pf
 
 
 def _with_system(case: Case, system) -> Case:

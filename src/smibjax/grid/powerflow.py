@@ -39,9 +39,7 @@ from typing import Literal
 import equinox as eqx
 import jax
 import jax.numpy as jnp
-import lineax as lx
 import numpy as np
-import optimistix as optx
 from jaxtyping import Array, Bool, Float, Int
 
 from .._errors import ParameterError
@@ -231,6 +229,9 @@ def power_flow(
 
 @eqx.filter_jit
 def _power_flow(system, flat, *, tol, max_iter, branch_status):
+    import lineax as lx  # (here: the host power flow imports neither)
+    import optimistix as optx
+
     s = _schedule(system)
     Y = ybus(system, branch_status)
     y0 = _start(system, s, flat)
@@ -322,15 +323,15 @@ def solve_power_flow(
     again from a flat start, whose solution is kept if it converged with a higher
     lowest voltage.
 
-    `method`: "sparse" (default; `powerflow_sparse.power_flow_sparse`: analytic
-    Jacobian, sparse LU) or "dense" (`power_flow`); the same equations and
-    solution."""
+    `method`: "sparse" (default; `powerflow_sparse.power_flow_host`: analytic
+    Jacobian, sparse LU, its set-up a stored program) or "dense" (`power_flow`);
+    the same equations and solution."""
     _check(system)
     if method not in ("sparse", "dense"):
         raise ValueError(f"power flow: method {method!r} is not 'sparse' or 'dense'")
     solve = power_flow
     if method == "sparse":
-        from .powerflow_sparse import power_flow_sparse as solve
+        from .powerflow_sparse import power_flow_host as solve
     res = solve(system, start=start, tol=tol, max_iter=max_iter)
     low = lambda r: float(jnp.min(r.vm))  # noqa: E731
     if start == "case" and (not bool(res.converged) or low(res) < LOW_V):

@@ -31,7 +31,7 @@ from .powerflow import PowerFlowResult, Start, _schedule, _start, result_of
 from .system import System
 from .ybus import branch_admittances
 
-__all__ = ["power_flow_sparse"]
+__all__ = ["power_flow_sparse", "power_flow_host"]
 
 
 def _network(system: System):
@@ -219,3 +219,67 @@ def _power_flow_sparse(system, flat, tol, max_iter) -> PowerFlowResult:
     v = vm * jnp.exp(1j * va)
     inj = v * jnp.conj(_current(net, v))
     return result_of(system, s, va, vm, inj, steps, done, tol)
+
+
+# ---- the host entry: two stored programs around the host Newton ----
+
+
+def _prepare(system, flat):
+    """Newton's inputs: the start x0 and the host arguments (branch list, schedule)."""
+    s = _schedule(system)
+    net = _network(system)
+    out = dict(zip(_HOST_ARGS, _host_args(net, s), strict=True))
+    return out | {"x0": _start(system, s, flat)}
+
+
+def _finish(system, x, steps, done, tol):
+    """The `PowerFlowResult` fields of Newton's iterate x."""
+    s = _schedule(system)
+    net = _network(system)
+    n = system.n_bus
+    va, vm = x[:n], x[n:]
+    v = vm * jnp.exp(1j * va)
+    inj = v * jnp.conj(_current(net, v))
+    # the step count and flag arrive as floats: arguments, not constants of the program
+    res = result_of(system, s, va, vm, inj, steps.astype(jnp.int32), done > 0.5, tol)
+    return {f: getattr(res, f) for f in PowerFlowResult.__dataclass_fields__}
+
+
+def _stored():
+    from .._stored import stored_jit
+
+    return stored_jit(_prepare, "powerflow.prepare"), stored_jit(
+        _finish, "powerflow.finish"
+    )
+
+
+_HOST_ARGS = ("fr", "to", "y_ff", "y_ft", "y_tf", "y_tt", "diag")
+_HOST_ARGS += ("slack", "fixed_v", "va_set", "v_set", "p_sched", "q_sched")
+_PREPARE = _FINISH = None
+
+
+def power_flow_host(
+    system: System,
+    *,
+    start: Start = "case",
+    tol: float = 1e-10,
+    max_iter: int = 30,
+) -> PowerFlowResult:
+    """`power_flow_sparse` for the host (not jittable, not differentiable): the same
+    Newton iterates and result, with the set-up and the result as stored programs
+    (`smibjax._stored`) around the host Newton, so that a later process with a case
+    of the same structure neither traces nor compiles them."""
+    global _PREPARE, _FINISH
+    if _PREPARE is None:
+        _PREPARE, _FINISH = _stored()
+    if start not in ("case", "flat"):
+        raise ParameterError(f"power flow: start {start!r} is not 'case' or 'flat'")
+    flat = np.asarray(start == "flat", dtype=np.float64)
+    prep = _PREPARE(system, flat)
+    x, steps, done = _newton_host(
+        np.asarray(prep["x0"]), tol, max_iter, *(prep[k] for k in _HOST_ARGS)
+    )
+    fields = _FINISH(
+        system, x, np.asarray(steps, np.float64), np.asarray(done, np.float64), tol
+    )
+    return PowerFlowResult(**fields)
