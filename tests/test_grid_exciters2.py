@@ -18,10 +18,12 @@ import pytest
 from smibjax._validate import ParameterError
 from smibjax.grid.case import load_case
 from smibjax.grid.devices._blocks import fex
+from smibjax.grid.devices.esac6a import ESAC6A
 from smibjax.grid.devices.esst1a import ESST1A
 from smibjax.grid.devices.esst4b import ESST4B, pi_nonwindup
 from smibjax.grid.devices.exac1 import ESAC1A, EXAC1, ve_at_rest
 from smibjax.grid.devices.exac2 import EXAC2
+from smibjax.grid.devices.expic1 import EXPIC1
 from smibjax.grid.events import BranchTrip
 from smibjax.grid.loop import evaluate, state_labels
 from smibjax.grid.network import stage_configs, stage_matrices
@@ -506,3 +508,215 @@ def test_esst4b_against_andes():
     want = np.asarray(rec["Efd"])
     assert np.ptp(want) > 0.3
     assert np.max(np.abs(efd[:, 0] - want)) / np.ptp(want) < 1e-3
+
+
+# ---------------------------------------------------------------------------
+# EXPIC1 and ESAC6A: no program's results at hand; their own closed forms
+
+
+def _expic1(r):
+    ta2 = _u(r, 0.02, 0.2, 0.4)
+    ta4 = _u(r, 0.02, 0.2, 0.4)
+    kf = np.where((ta2 > 0) & (ta4 > 0), _u(r, 0.0, 0.05, 0.3), 0.0)
+    te = _u(r, 0.3, 1.0, 0.4)
+    return EXPIC1(
+        np.arange(K),
+        TR=_u(r, 0.0, 0.05, 0.3),
+        KA=_u(r, 1.0, 10.0),
+        TA1=_u(r, 0.2, 2.0, 0.2),
+        VR1=_u(r, 3.0, 5.0),
+        VR2=_u(r, -3.0, -0.5),
+        TA2=ta2,
+        TA3=np.where(ta2 + ta4 > 0, _u(r, 0.0, 0.1, 0.3), 0.0),
+        TA4=ta4,
+        VRMAX=_u(r, 3.0, 5.0),
+        VRMIN=_u(r, -3.0, -0.5),
+        KF=kf,
+        TF1=_u(r, 0.5, 1.5),
+        TF2=_u(r, 0.05, 0.5, 0.5),
+        EFDMAX=_u(r, 8.0, 10.0),
+        EFDMIN=_u(r, -2.0, 0.0),
+        KE=np.where(te > 0, _u(r, 0.5, 1.0), 0.0),
+        TE=te,
+        E1=_u(r, 3.0, 4.0),
+        SE1=_u(r, 0.0, 0.1, 0.3),
+        E2=_u(r, 4.5, 5.5),
+        SE2=_u(r, 0.2, 0.6),
+        KP=np.r_[0.0, _u(r, 4.0, 8.0)[1:]],  # KP = KI = 0 (VB = 1) in device 0
+        KI=np.r_[0.0, _u(r, 0.0, 0.3, 0.5)[1:]],
+        KC=_u(r, 0.0, 0.2, 0.3),
+    )
+
+
+def _esac6a(r):
+    ta = _u(r, 0.5, 20.0, 0.3)
+    tb = _u(r, 0.05, 1.0, 0.3)
+    th = _u(r, 0.1, 1.0, 0.4)
+    return ESAC6A(
+        np.arange(K),
+        TR=_u(r, 0.0, 0.05, 0.3),
+        KA=_u(r, 100.0, 600.0),
+        TA=ta,
+        TK=np.where(ta > 0, _u(r, 0.0, 3.0, 0.3), 0.0),
+        TB=tb,
+        TC=np.where(tb > 0, _u(r, 0.1, 1.0), 0.0),
+        VAMAX=_u(r, 10.0, 20.0),
+        VAMIN=_u(r, -10.0, 0.0),
+        VRMAX=_u(r, 10.0, 20.0),
+        VRMIN=_u(r, -10.0, 0.0),
+        TE=_u(r, 0.5, 1.5),
+        VFELIM=_u(r, 1.0, 5.0),  # below and above VFE0: the limiter on and off
+        KH=_u(r, 0.0, 1.0, 0.3),
+        VHMAX=_u(r, 5.0, 10.0),
+        TH=th,
+        TJ=np.where(th > 0, _u(r, 0.0, 1.0), 0.0),
+        KC=_u(r, 0.0, 1.0, 0.2),
+        KD=_u(r, 0.0, 1.0, 0.3),
+        KE=_u(r, 0.5, 1.0),
+        E1=_u(r, 3.0, 4.0),
+        SE1=_u(r, 0.0, 0.1, 0.3),
+        E2=_u(r, 4.5, 5.5),
+        SE2=_u(r, 0.2, 0.6),
+    )
+
+
+MODELS.update(EXPIC1=_expic1, ESAC6A=_esac6a)
+
+
+@pytest.mark.parametrize("name", ["EXPIC1", "ESAC6A"])
+def test_init_is_an_equilibrium_expic1_esac6a(name):
+    """As `test_init_is_an_equilibrium`, for the two models without a reference
+    program (TE = 0, one or no filter lag, the limiter on and off included)."""
+    test_init_is_an_equilibrium(name)
+
+
+@pytest.mark.parametrize("name,param", [("EXPIC1", "KA"), ("ESAC6A", "KA")])
+def test_gradient_expic1_esac6a(name, param):
+    test_gradient_matches_central_differences(name, param)
+
+
+def _frequency_response(dev, meas, y0, ws):
+    """Efd/Vs of `dev` linearised at rest with jax.jacfwd, per device, at the
+    angular frequencies ws (rad/s)."""
+    x0, ref = dev.init(jnp.asarray(y0), meas)
+    k = len(y0)
+
+    def m(vs):
+        return {**meas, "Vs": vs}
+
+    vs0 = jnp.asarray(meas["Vs"])
+    A = jax.jacfwd(lambda x: dev.rhs(x, m(vs0), ref))(x0)
+    B = jax.jacfwd(lambda u: dev.rhs(x0, m(u), ref))(vs0)
+    C = jax.jacfwd(lambda x: dev.out(x, m(vs0), ref))(x0)
+    D = jax.jacfwd(lambda u: dev.out(x0, m(u), ref))(vs0)
+    ns = len(dev.state_names)
+    out = np.zeros((k, len(ws)), complex)
+    for i in range(k):
+        Ai, Bi = np.asarray(A[:, i, :, i]), np.asarray(B[:, i, i])
+        Ci, Di = np.asarray(C[i, :, i]), float(D[i, i])
+        for j, w in enumerate(ws):
+            out[i, j] = Ci @ np.linalg.solve(1j * w * np.eye(ns) - Ai, Bi) + Di
+    return out
+
+
+def test_expic1_frequency_response_is_its_transfer_function():
+    """No saturation, inside every limit: Efd/Vs = VB G F / (1 + G F H) / (KE + s
+    TE) (TE = 0: without the exciter), G = KA (1 + s TA1)/s, F = (1 + s TA3)/((1 +
+    s TA2)(1 + s TA4)) (one lag: (1 + s TA3)/(1 + s (TA2 + TA4)); none: 1), H = KF
+    s/((1 + s TF1)(1 + s TF2)), VB = |KP Vt + j KI It| FEX(KC XadIfd / VE)."""
+    r = np.random.default_rng(8)
+    dev = _expic1(r)
+    dev = EXPIC1(**{**_fields(dev), "SE1": np.zeros(K)})
+    meas = _meas(r)
+    y0 = _u(r, 1.5, 2.5)
+    ws = (0.05, 0.5, 3.0, 20.0)
+    got = _frequency_response(dev, meas, y0, ws)
+    vb = np.asarray(dev.vb(meas))
+    p = {n: np.asarray(getattr(dev, n)) for n in dev.con_names}
+    for i in range(K):
+        q = {n: float(a[i]) for n, a in p.items()}
+        for j, w in enumerate(ws):
+            s = 1j * w
+            g = q["KA"] * (1 + s * q["TA1"]) / s
+            t2, t4 = q["TA2"], q["TA4"]
+            if t2 > 0 and t4 > 0:
+                f = (1 + s * q["TA3"]) / ((1 + s * t2) * (1 + s * t4))
+            elif t2 + t4 > 0:
+                f = (1 + s * q["TA3"]) / (1 + s * (t2 + t4))
+            else:
+                f = 1.0
+            h = q["KF"] * s / ((1 + s * q["TF1"]) * (1 + s * q["TF2"]))
+            want = vb[i] * g * f / (1 + g * f * h)
+            if q["TE"] > 0:
+                want /= q["KE"] + s * q["TE"]
+            assert abs(got[i, j] - want) <= 1e-8 * abs(want), (i, w, got[i, j], want)
+    assert np.any(p["TE"] == 0) and np.any(p["KF"] > 0)
+
+
+def test_esac6a_frequency_response_is_its_transfer_function():
+    """KC = KD = 0, no saturation, inside every limit: Efd/Vs = VE/Vs = A / (s TE
+    + KE (1 + KH L)), A = KA (1 + s TK)/(1 + s TA) (1 + s TC)/(1 + s TB), L = (1 +
+    s TJ)/(1 + s TH) where the limiter is active at rest (VFE0 > VFELIM), L = 0
+    where it rests at its floor VH = 0."""
+    r = np.random.default_rng(9)
+    dev = _esac6a(r)
+    zero = np.zeros(K)
+    vfelim = np.where(np.arange(K) % 2 == 0, 0.5, 10.0)  # the limiter on, off
+    dev = ESAC6A(
+        **{**_fields(dev), "SE1": zero, "KC": zero, "KD": zero, "VFELIM": vfelim}
+    )
+    meas = _meas(r)
+    y0 = _u(r, 1.5, 2.5)
+    ws = (0.05, 0.5, 3.0, 20.0)
+    got = _frequency_response(dev, meas, y0, ws)
+    p = {n: np.asarray(getattr(dev, n)) for n in dev.con_names}
+    on = p["KE"] * y0 > p["VFELIM"]
+    assert np.any(on & (p["KH"] > 0)) and np.any(~on)
+    for i in range(K):
+        q = {n: float(a[i]) for n, a in p.items()}
+        for j, w in enumerate(ws):
+            s = 1j * w
+            a = q["KA"] * (1 + s * q["TK"]) / (1 + s * q["TA"])
+            a *= (1 + s * q["TC"]) / (1 + s * q["TB"])
+            lim = (1 + s * q["TJ"]) / (1 + s * q["TH"]) if on[i] else 0.0
+            want = a / (s * q["TE"] + q["KE"] * (1 + q["KH"] * lim))
+            assert abs(got[i, j] - want) <= 1e-8 * abs(want), (i, w, got[i, j], want)
+
+
+def test_esac6a_regulator_ceiling_moves_with_the_terminal_voltage_and_va_holds():
+    """A regulator state far above VAMAX and an error pushing it further: its
+    state is frozen (non-windup: dx_a/dt = 0 while pushed outwards); VLL =
+    VAMAX (its lead-lag at rest there) above the ceiling Vt VRMAX (KH = 0), so
+    TE dVE/dt = Vt VRMAX - VFE."""
+    r = np.random.default_rng(10)
+    dev, meas = _esac6a(r), _meas(r)
+    dev = ESAC6A(
+        **{**_fields(dev), "TA": _u(r, 0.5, 2.0), "TB": _u(r, 0.1, 1.0)}
+        | {"VRMAX": np.full(K, 5.0), "KH": np.zeros(K)}
+    )
+    x0, ref = dev.init(jnp.asarray(_u(r, 1.5, 2.5)), meas)
+    x = x0.at[1].set(1e3).at[2].set(dev.VAMAX)  # VA pinned at VAMAX = VLL
+    dx = np.asarray(dev.rhs(x, {**meas, "Vs": meas["Vs"] + 100.0}, ref))
+    np.testing.assert_array_equal(dx[1], 0.0)
+    ve = np.asarray(x[3])
+    vfe = np.asarray(dev.vfe(x[3], meas["XadIfd"]))
+    np.testing.assert_allclose(
+        dx[3] * np.asarray(dev.TE), meas["Vt"] * np.asarray(dev.VRMAX) - vfe, rtol=1e-12
+    )
+    assert np.all(ve > 0)
+
+
+def test_expic1_and_esac6a_bad_parameters_are_refused_in_one_line():
+    r = np.random.default_rng(11)
+    dev = _expic1(r)
+    f = _fields(dev)
+    bad = {**f, "KF": np.full(K, 0.1), "TA1": np.ones(K), "TA2": np.zeros(K)}
+    with pytest.raises(ParameterError, match=r"^EXPIC1\.KF = .* algebraic loop\)$"):
+        EXPIC1(**{**bad, "TA4": np.zeros(K)})
+    with pytest.raises(ParameterError, match=r"^EXPIC1\.VR1 = .* must be >= VR2$"):
+        EXPIC1(**{**f, "VR1": np.full(K, -9.0)})
+    dev = _esac6a(r)
+    with pytest.raises(ParameterError, match=r"^ESAC6A\.TA = .* where TK != 0"):
+        ESAC6A(**{**_fields(dev), "TA": np.zeros(K), "TK": np.ones(K)})
+    with pytest.raises(ParameterError, match=r"^ESAC6A\.TE = .* must be > 0$"):
+        ESAC6A(**{**_fields(dev), "TE": np.zeros(K)})

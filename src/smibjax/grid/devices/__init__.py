@@ -41,8 +41,10 @@ from .stab2a import STAB2A as STAB2A
 
 # isort: split
 # issue 45, part 2: more exciters
+from .esac6a import ESAC6A as ESAC6A
 from .esst1a import ESST1A as ESST1A
 from .esst4b import ESST4B as ESST4B
 from .exac1 import ESAC1A as ESAC1A
 from .exac1 import EXAC1 as EXAC1
 from .exac2 import EXAC2 as EXAC2
+from .expic1 import EXPIC1 as EXPIC1
