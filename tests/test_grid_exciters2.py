@@ -370,6 +370,7 @@ def _case(name):
     return case, op
 
 
+@pytest.mark.slow  # a case evaluated once: 10-30 s on a busy machine
 @pytest.mark.parametrize("name", list(CASES))
 def test_psse_case_starts_at_an_exact_equilibrium(name):
     """Every state derivative of PSS/E's benchmark case (GENSAL + HYGOV + the
@@ -720,3 +721,66 @@ def test_expic1_and_esac6a_bad_parameters_are_refused_in_one_line():
         ESAC6A(**{**_fields(dev), "TA": np.zeros(K), "TK": np.ones(K)})
     with pytest.raises(ParameterError, match=r"^ESAC6A\.TE = .* must be > 0$"):
         ESAC6A(**{**_fields(dev), "TE": np.zeros(K)})
+
+
+# ---------------------------------------------------------------------------
+# on a case: Kundur's four machines (and their IEEEST stabilizers) with
+# ACTIVSg2000's first ESST4B, EXAC2, EXPIC1 and ESAC6A records
+
+KUNDUR_DYR = """ 1 'ESST4B' 1  0  3.9436  3.9436  1  -1  0  1  0  1  -1  0  6.8885  0
+   8.7286  0.08  0  0  /  ACTIVSg2000 bus 1048
+ 2 'EXAC2' 1  0  1  1  1000  0.05  100  -100  1  27.2628  -27.2628  1.3  4  0  0.49
+   1  0.1  1.6  1  14  3.6225  0.0004  4.83  0.0106  /  bus 1049
+ 3 'EXPIC1' 1  0  3  1  1  -0.87  0  0  0  1  -0.87  0  1  0  7.4304  0  0  0  1  0
+   1.2  0  6.4388  0  0.08  /  bus 1051
+ 4 'ESAC6A' 1  0  575.606  17.4788  3  0.1399  0.9  9.08  -9.08  9.08  -9.08  1  100
+   0  10  0  0  0  0  1  5.0009  0.1209  6.6679  0.806  /  bus 2056
+"""
+
+
+@functools.cache
+def _kundur(tmp):
+    from smibjax.grid.case import case_files
+
+    raw, dyr = case_files("kundur")
+    keep = [ln for ln in dyr.read_text().splitlines() if "'SEXS'" not in ln]
+    path = Path(tmp) / "kundur_exciters2.dyr"
+    path.write_text("\n".join(keep) + "\n" + KUNDUR_DYR)
+    case = load_case(raw, path)
+    op, _ = operating_point(case)
+    return case, op
+
+
+@pytest.mark.slow  # a case evaluated once: 10-30 s on a busy machine
+def test_kundur_with_activsg2000_exciters_starts_at_an_exact_equilibrium(tmp_path):
+    """ESST4B, EXAC2, EXPIC1 and ESAC6A with ACTIVSg2000's data on Kundur's four
+    GENROU machines, each with its IEEEST: every state derivative at t = 0 is below
+    1e-8 and each exciter holds its machine's Efd0."""
+    case, op = _kundur(str(tmp_path))
+    names = [type(c).__name__ for c in case.controllers]
+    assert {"ESST4B", "EXAC2", "EXPIC1", "ESAC6A"} <= set(names)
+    mats = stage_matrices(op.grid, stage_configs(op.grid, ()))
+    dy, meas, _ = evaluate(case, op, mats, 0, op.y0)  # eager: no compile
+    worst = int(np.argmax(np.abs(dy)))
+    assert float(jnp.max(jnp.abs(dy))) < 1e-8, state_labels(case)[worst]
+    np.testing.assert_allclose(meas["Efd"], op.held[0]["Efd"], rtol=1e-12)
+
+
+@pytest.mark.slow
+def test_kundur_with_activsg2000_exciters_rides_through_a_bus_fault(tmp_path):
+    """A 50 ms three-phase fault at bus 7 (Kundur's area 1 load bus): the four
+    exciters drive their machines through it, the system stays in synchronism,
+    every field voltage stays finite and returns towards its operating point
+    (within 10 % of Efd0 at 8 s)."""
+    from smibjax.grid.events import BusFault
+
+    case, op = _kundur(str(tmp_path))
+    b = int(case.system.bus_index(7))
+    tr = simulate_jit(
+        case, op, (BusFault(bus=b, t_on=1.0, t_off=1.05),), t_end=8.0, dt_save=0.01
+    )
+    efd = np.asarray(tr.efd)
+    assert bool(tr.stable) and np.all(np.isfinite(efd))
+    efd0 = np.asarray(op.held[0]["Efd"])
+    assert np.all(np.ptp(efd, axis=0) > 0.05)  # each exciter acted
+    np.testing.assert_allclose(efd[-1], efd0, rtol=0.1)
