@@ -18,6 +18,7 @@ import pytest
 from smibjax._validate import ParameterError
 from smibjax.grid.case import load_case
 from smibjax.grid.devices._blocks import fex
+from smibjax.grid.devices.dc4b import DC4B
 from smibjax.grid.devices.esac6a import ESAC6A
 from smibjax.grid.devices.esst1a import ESST1A
 from smibjax.grid.devices.esst4b import ESST4B, pi_nonwindup
@@ -25,7 +26,7 @@ from smibjax.grid.devices.exac1 import ESAC1A, EXAC1, ve_at_rest
 from smibjax.grid.devices.exac2 import EXAC2
 from smibjax.grid.devices.expic1 import EXPIC1
 from smibjax.grid.events import BranchTrip
-from smibjax.grid.loop import evaluate, state_labels
+from smibjax.grid.loop import evaluate, state_labels, unpack
 from smibjax.grid.network import stage_configs, stage_matrices
 from smibjax.grid.operating import operating_point
 from smibjax.grid.scenarios import branch_positions
@@ -738,14 +739,23 @@ KUNDUR_DYR = """ 1 'ESST4B' 1  0  3.9436  3.9436  1  -1  0  1  0  1  -1  0  6.88
 """
 
 
+# the NETS-NYPS 68-bus case's DC4B record (PowerSystemsTestData, psse_dyr/NETS-NYPS
+# 68 Bus System.dyr, generator 1), on each of Kundur's machines
+DC4B_REC = (
+    "'DC4B' 1  1  1  0.01  200  50  50  0.01  10  -10  1  0.02  1  0.785  0.03  1"
+)
+DC4B_REC += "  -10  3.9267  0.07  5.2356  0.91  /"
+KUNDUR_DC4B = "".join(f" {g} {DC4B_REC}\n" for g in (1, 2, 3, 4))
+
+
 @functools.cache
-def _kundur(tmp):
+def _kundur(tmp, records=KUNDUR_DYR):
     from smibjax.grid.case import case_files
 
     raw, dyr = case_files("kundur")
     keep = [ln for ln in dyr.read_text().splitlines() if "'SEXS'" not in ln]
     path = Path(tmp) / "kundur_exciters2.dyr"
-    path.write_text("\n".join(keep) + "\n" + KUNDUR_DYR)
+    path.write_text("\n".join(keep) + "\n" + records)
     case = load_case(raw, path)
     op, _ = operating_point(case)
     return case, op
@@ -784,3 +794,95 @@ def test_kundur_with_activsg2000_exciters_rides_through_a_bus_fault(tmp_path):
     efd0 = np.asarray(op.held[0]["Efd"])
     assert np.all(np.ptp(efd, axis=0) > 0.05)  # each exciter acted
     np.testing.assert_allclose(efd[-1], efd0, rtol=0.1)
+
+
+@pytest.mark.slow  # a case evaluated once: 10-30 s on a busy machine
+def test_kundur_with_dc4b_starts_at_an_exact_equilibrium(tmp_path):
+    """The NETS-NYPS 68-bus case's DC4B (PID regulator, bus-fed ceiling) on
+    Kundur's four machines with their IEEEST: every derivative below 1e-8 at t =
+    0, and the regulator rests at VR0 = (KE + SE(Efd0)) Efd0."""
+    case, op = _kundur(str(tmp_path), KUNDUR_DC4B)
+    k = [type(c).__name__ for c in case.controllers].index("DC4B")
+    mats = stage_matrices(op.grid, stage_configs(op.grid, ()))
+    dy, meas, _ = evaluate(case, op, mats, 0, op.y0)
+    worst = int(np.argmax(np.abs(dy)))
+    assert float(jnp.max(jnp.abs(dy))) < 1e-8, state_labels(case)[worst]
+    xc = unpack(case, op, op.y0)[1][k]
+    dev, efd0 = case.controllers[k], np.asarray(xc[4])
+    np.testing.assert_allclose(xc[3], 1.0 * efd0 + dev.se_efd(efd0), rtol=1e-12)
+
+
+def _dc4b(r):
+    kd = _u(r, 0.0, 50.0, 0.3)
+    return DC4B(
+        np.arange(K),
+        UEL=np.ones(K),
+        OEL=np.ones(K),
+        TR=_u(r, 0.0, 0.05, 0.3),
+        KP=_u(r, 10.0, 200.0),
+        KI=_u(r, 0.0, 50.0, 0.3),
+        KD=kd,
+        TD=np.where(kd > 0, _u(r, 0.005, 0.05), _u(r, 0.005, 0.05, 0.5)),
+        VRMAX=_u(r, 8.0, 12.0, 0.3),  # 0: computed at rest
+        VRMIN=_u(r, -12.0, -8.0),
+        KA=_u(r, 0.5, 2.0),
+        TA=_u(r, 0.01, 0.05, 0.3),
+        KE=np.where(r.uniform(size=K) < 0.3, 0.0, _u(r, 0.5, 1.0)),
+        TE=_u(r, 0.3, 1.0),
+        KF=_u(r, 0.0, 0.05, 0.3),
+        TF=_u(r, 0.5, 1.5),
+        VEMIN=_u(r, -10.0, 0.0),
+        E1=_u(r, 3.0, 4.0),
+        SE1=_u(r, 0.0, 0.1, 0.3),
+        E2=_u(r, 4.5, 5.5),
+        SE2=_u(r, 0.2, 0.9),
+    )
+
+
+MODELS.update(DC4B=_dc4b)
+
+
+def test_dc4b_equilibrium_and_gradient():
+    """Random DC4B groups (KE = 0 and VRMAX = 0 computed at rest, TA = 0, no
+    derivative or integral channel included): `init` is an equilibrium, and the
+    gradient in KP matches central differences."""
+    test_init_is_an_equilibrium("DC4B")
+    test_gradient_matches_central_differences("DC4B", "KP")
+
+
+def test_dc4b_frequency_response_is_its_transfer_function():
+    """No saturation, KE != 0, inside every limit: Efd/Vs = G/(1 + G H), G = (KP +
+    KI/s + KD s/(1 + s TD)) KA Vt/((1 + s TA)(KE + s TE)), H = KF s/(1 + s TF)."""
+    r = np.random.default_rng(12)
+    dev = _dc4b(r)
+    dev = DC4B(
+        **{**_fields(dev), "SE1": np.zeros(K), "KE": _u(r, 0.5, 1.0)}
+        | {"VRMAX": _u(r, 8.0, 12.0)}
+    )
+    meas = _meas(r)
+    ws = (0.05, 0.5, 3.0, 20.0)
+    got = _frequency_response(dev, meas, _u(r, 1.5, 2.5), ws)
+    p = {n: np.asarray(getattr(dev, n)) for n in dev.con_names}
+    for i in range(K):
+        q = {n: float(a[i]) for n, a in p.items()}
+        for j, w in enumerate(ws):
+            s = 1j * w
+            c = q["KP"] + q["KI"] / s + q["KD"] * s / (1 + s * q["TD"])
+            g = (
+                c
+                * q["KA"]
+                * meas["Vt"][i]
+                / ((1 + s * q["TA"]) * (q["KE"] + s * q["TE"]))
+            )
+            h = q["KF"] * s / (1 + s * q["TF"])
+            want = g / (1 + g * h)
+            assert abs(got[i, j] - want) <= 1e-8 * abs(want), (i, w, got[i, j], want)
+
+
+def test_dc4b_bad_parameters_are_refused_in_one_line():
+    r = np.random.default_rng(13)
+    f = _fields(_dc4b(r))
+    with pytest.raises(ParameterError, match=r"^DC4B\.TD = .* pure derivative\)$"):
+        DC4B(**{**f, "TD": np.zeros(K), "KD": np.ones(K)})
+    with pytest.raises(ParameterError, match=r"^DC4B\.KA = .* must be > 0$"):
+        DC4B(**{**f, "KA": np.zeros(K)})

@@ -49,6 +49,7 @@ EXCITERS = ("SEXS", "IEEEX1", "EXDC2", "EXST1", "SYNEX")
 EXCITERS += ("ESST3A", "ESDC2A", "SCRX", "IEEET2", "IEEEVC", "ESDC1A", "IEEET1")
 # issue 45, part 2: more PSS/E exciters
 EXCITERS += ("ESST4B", "ESST1A", "EXAC1", "ESAC1A", "EXAC2", "EXPIC1", "ESAC6A")
+EXCITERS += ("DC4B",)
 STABILIZERS = ("IEEEST", "STAB1")
 GOVERNORS = ("TGOV1",)
 # governors and stabilizers of issue 45

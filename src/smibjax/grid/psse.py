@@ -1284,6 +1284,28 @@ DYR_MODELS: dict[str, tuple[str, ...]] = {
         "E2",
         "SE2",
     ),
+    "DC4B": (
+        "UEL",
+        "OEL",
+        "TR",
+        "KP",
+        "KI",
+        "KD",
+        "TD",
+        "VRMAX",
+        "VRMIN",
+        "KA",
+        "TA",
+        "KE",
+        "TE",
+        "KF",
+        "TF",
+        "VEMIN",
+        "E1",
+        "SE1",
+        "E2",
+        "SE2",
+    ),
     # --- end of the issue-45 exciters, part 2
     # smibjax-specific, not a PSS/E model: the paper's synergetic excitation law on
     # a local SMIB equivalent (devices/synex.py)
@@ -1481,6 +1503,7 @@ DYR_KINDS: dict[str, str] = {
     "EXAC2": "exciter",
     "EXPIC1": "exciter",
     "ESAC6A": "exciter",
+    "DC4B": "exciter",
     # --- end of the issue-45 exciters, part 2
     # governors and stabilizers of issue 45
     "IEEEG1": "governor",

@@ -41,6 +41,7 @@ from .stab2a import STAB2A as STAB2A
 
 # isort: split
 # issue 45, part 2: more exciters
+from .dc4b import DC4B as DC4B
 from .esac6a import ESAC6A as ESAC6A
 from .esst1a import ESST1A as ESST1A
 from .esst4b import ESST4B as ESST4B
