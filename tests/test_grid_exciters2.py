@@ -886,3 +886,28 @@ def test_dc4b_bad_parameters_are_refused_in_one_line():
         DC4B(**{**f, "TD": np.zeros(K), "KD": np.ones(K)})
     with pytest.raises(ParameterError, match=r"^DC4B\.KA = .* must be > 0$"):
         DC4B(**{**f, "KA": np.zeros(K)})
+
+
+def test_psse_con_order_of_esst1a_and_esac1a_fits_the_public_records(tmp_path):
+    """The Australian 14-generator case's records (PowerSystemsTestData,
+    psse_dyr/AU14GenModel.dyr, generators 101 and 202) read in PSS/E's CON order
+    give the data their authors meant: ESST1A lead TC = 2.5 s over lag TB = 13.25
+    s, KA = 200, TA = 0.1 s, ILR = 999 (no limiter); ESAC1A KA = 400, TA = 0.02 s,
+    TE = 1 s, KF = 0.029, VRMAX = 99. (ANDES 2.0's order would read ESST1A's KA =
+    9.5 and VAMAX = 200, ESAC1A's VAMAX = 400 and KA = 5.5.)"""
+    from smibjax.grid.psse import read_dyr
+
+    dyr = tmp_path / "au14.dyr"
+    dyr.write_text(
+        "  101 'ESST1A' 1   1  1  0  99  -99  2.5  13.25  0  0  200  0.1  9.5  -9.5"
+        "  9.5  -9.5  0  0  1  0  999  /\n"
+        "  202 'ESAC1A' 1   0  0  0  400  0.02  5.5  -5.5  1  0.029  1  0  0  1  0  0"
+        "  0  0  99  -99  /\n"
+    )
+    st1a, ac1a = (r.params for r in read_dyr(dyr))
+    assert (st1a["TC"], st1a["TB"], st1a["KA"], st1a["TA"]) == (2.5, 13.25, 200, 0.1)
+    assert (st1a["VAMAX"], st1a["ILR"], st1a["KF"], st1a["TF"]) == (9.5, 999, 0, 1)
+    assert (ac1a["KA"], ac1a["TA"], ac1a["TE"], ac1a["KF"]) == (400, 0.02, 1, 0.029)
+    assert (ac1a["VAMAX"], ac1a["VRMAX"], ac1a["VRMIN"]) == (5.5, 99, -99)
+    ESST1A.from_params([0], [st1a])
+    ESAC1A.from_params([0], [ac1a])
