@@ -47,6 +47,9 @@ EXCITERS = ("SEXS", "IEEEX1", "EXDC2", "EXST1", "SYNEX")
 # issue 45: more PSS/E exciters, and the load compensator IEEEVC (it writes the
 # voltage the exciter regulates; grouped here as part of the excitation system)
 EXCITERS += ("ESST3A", "ESDC2A", "SCRX", "IEEET2", "IEEEVC", "ESDC1A", "IEEET1")
+# issue 45, part 2: more PSS/E exciters
+EXCITERS += ("ESST4B", "ESST1A", "EXAC1", "ESAC1A", "EXAC2", "EXPIC1", "ESAC6A")
+EXCITERS += ("DC4B",)
 STABILIZERS = ("IEEEST", "STAB1")
 GOVERNORS = ("TGOV1",)
 # governors and stabilizers of issue 45

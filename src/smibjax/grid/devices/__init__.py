@@ -38,3 +38,14 @@ from .pss2 import PSS2B as PSS2B
 from .scrx import SCRX as SCRX
 from .st2cut import ST2CUT as ST2CUT
 from .stab2a import STAB2A as STAB2A
+
+# isort: split
+# issue 45, part 2: more exciters
+from .dc4b import DC4B as DC4B
+from .esac6a import ESAC6A as ESAC6A
+from .esst1a import ESST1A as ESST1A
+from .esst4b import ESST4B as ESST4B
+from .exac1 import ESAC1A as ESAC1A
+from .exac1 import EXAC1 as EXAC1
+from .exac2 import EXAC2 as EXAC2
+from .expic1 import EXPIC1 as EXPIC1
