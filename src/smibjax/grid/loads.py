@@ -40,6 +40,10 @@ PQBRAK = 0.7  # PSS/E's default constant-power break (pu voltage)
 IBRAK = 0.5  # the constant-current break (pu voltage)
 
 
+def _floats(v) -> tuple[float, ...]:
+    return tuple(float(x) for x in v)
+
+
 class LoadModel(eqx.Module):
     """The conversion of loads for dynamics: `p` and `q` the shares of the raw
     file's constant-power part kept as constant power, converted to constant current
@@ -48,10 +52,14 @@ class LoadModel(eqx.Module):
     constant power and constant current parts start to turn impedance-like.
     ANDES's PQ in time domain: `LoadModel(p=..., q=..., pqbrak=0, ibrak=0)`."""
 
-    p: tuple[float, float, float] = eqx.field(static=True, default=(0.0, 0.0, 1.0))
-    q: tuple[float, float, float] = eqx.field(static=True, default=(0.0, 0.0, 1.0))
-    pqbrak: float = eqx.field(static=True, default=PQBRAK)
-    ibrak: float = eqx.field(static=True, default=IBRAK)
+    p: tuple[float, ...] = eqx.field(
+        static=True, default=(0.0, 0.0, 1.0), converter=_floats
+    )
+    q: tuple[float, ...] = eqx.field(
+        static=True, default=(0.0, 0.0, 1.0), converter=_floats
+    )
+    pqbrak: float = eqx.field(static=True, default=PQBRAK, converter=float)
+    ibrak: float = eqx.field(static=True, default=IBRAK, converter=float)
 
     def __check_init__(self):
         for name in ("p", "q"):

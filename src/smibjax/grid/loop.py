@@ -286,7 +286,7 @@ def initialize(case: Case, vm, va, p_gen, q_gen) -> Operating:
         x0, ref = s.init(v[b], q, s_base)
         svc_refs.append(ref)
         svc_blocks.append(x0)
-    inj_refs, inj_blocks, bus_y, inj_y0 = _init_injectors(case, v, s_gen, vm)
+    inj_refs, inj_blocks, bus_y, inj_y0, load_y = _init_injectors(case, v, s_gen, vm)
     src = np.asarray(lay.source_gen, dtype=np.int64)
     grid = Grid(
         system=sys_,
@@ -295,6 +295,7 @@ def initialize(case: Case, vm, va, p_gen, q_gen) -> Operating:
         ports=case.ports(),
         dirichlet=gbus[src],
         v_dirichlet=v[gbus[src]],
+        load_y=load_y,
     )
     allb = blocks + ctrl_blocks + svc_blocks + inj_blocks
     sizes = tuple(int(np.prod(b.shape)) for b in allb)
@@ -316,13 +317,14 @@ def _init_injectors(case: Case, v, s_gen, vm):
     """Each injector group at rest: (refs, state blocks, the bus admittances of the
     loads left as impedances, the shunts and the injectors' own admittances (pu),
     the injectors' equivalent admittance at rest per injector port (None without
-    injectors))."""
+    injectors), each load's constant-impedance part (pu))."""
     sys_ = case.system
     s_base = sys_.s_base
     lay = case.layout
-    if not case.injectors:
-        return (), [], _load_y(sys_, vm), None
     ld = sys_.loads
+    load_y = (jnp.asarray(ld.p) - 1j * jnp.asarray(ld.q)) / vm[np.asarray(ld.bus)] ** 2
+    if not case.injectors:
+        return (), [], _load_y(sys_, vm), None, load_y
     keep = np.ones(len(np.asarray(ld.bus)))
     s_load = -(jnp.asarray(ld.p) + 1j * jnp.asarray(ld.q))
     refs, blocks = [], []
@@ -340,10 +342,14 @@ def _init_injectors(case: Case, v, s_gen, vm):
         i0 = d.current(x0, v[b], ref, s_base)
         jp = np.asarray(lay.injector_jpos[k], dtype=np.int64)
         y_start = y_start.at[jp].add(-i0 / v[b])
-        extra = extra.at[b].add(d.admittance(ref, s_base))
+        y_d = d.admittance(ref, s_base)
+        extra = extra.at[b].add(y_d)
+        if d.source == "load":
+            load_y = load_y.at[src].set(y_d)
         refs.append(ref)
         blocks.append(x0)
-    return tuple(refs), blocks, _load_y(sys_, vm, jnp.asarray(keep)) + extra, y_start
+    bus_y = _load_y(sys_, vm, jnp.asarray(keep)) + extra
+    return tuple(refs), blocks, bus_y, y_start, load_y
 
 
 def unpack(case: Case, op: Operating, y):
@@ -445,10 +451,15 @@ def evaluate_all(case: Case, op: Operating, mats: StageMatrices, stage, y, u=Non
             y_sh = y_sh.at[pidx].add(s.admittance(x, s_base))
     res = jnp.zeros(())
     if case.injectors:
+        scale = None if mats.load_scale is None else mats.load_scale[stage]
         inj_on = [
             gst[np.asarray(lay.injector_src[k], dtype=np.int64)]
             if d.source == "gen"
-            else jnp.ones(len(lay.injector_src[k]))
+            else (
+                jnp.ones(len(lay.injector_src[k]))
+                if scale is None
+                else scale[np.asarray(lay.injector_src[k], dtype=np.int64)]
+            )
             for k, d in enumerate(case.injectors)
         ]
 
@@ -499,6 +510,10 @@ def evaluate_all(case: Case, op: Operating, mats: StageMatrices, stage, y, u=Non
         ctl, x, ref = case.controllers[i], xc[i], op.refs[i]
         g = np.asarray(lay.controller_gen[i], dtype=np.int64)
         vs = cmd["Vs"][g] + (u["Vs"][g] if "Vs" in u else 0.0)
+        if mats.vref_add is not None:  # a Vref step enters where Vs does
+            vs = vs + mats.vref_add[stage][g]
+        if mats.pref_add is not None and ctl.output == "Pm":
+            ref = ref + mats.pref_add[stage][g]
         efd_cmd = u["Efd_cmd"][g] if "Efd_cmd" in u else jnp.zeros(len(g))
         local = {k: meas[k][g] for k in meas} | {
             "Vs": vs,

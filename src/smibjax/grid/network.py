@@ -26,7 +26,15 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Bool, Complex, Float, Int
 
-from .events import BranchClose, BranchTrip, BusFault, GenTrip, LineFault
+from .events import (
+    BranchClose,
+    BranchTrip,
+    BusFault,
+    GenTrip,
+    LineFault,
+    LoadStep,
+    RefStep,
+)
 from .system import System
 
 __all__ = [
@@ -53,12 +61,16 @@ class Grid(eqx.Module):
     ports: Int[np.ndarray, " n_port"]
     dirichlet: Int[np.ndarray, " n_dir"]
     v_dirichlet: Complex[Array, " n_dir"]
+    # each load's constant-impedance part (pu; a `LoadStep` scales it); None: unknown
+    load_y: Complex[Array, " n_load"] | None = None
 
 
 class StageConfig(eqx.Module):
-    """The network in one stage: branch status, fault shunts and bolted-fault masks
-    per node, the split branches of line faults (one per spare node) and generator
-    status."""
+    """The network in one stage: branch status, fault shunts (and the shunt changes
+    of load steps) and bolted-fault masks per node, the split branches of line
+    faults (one per spare node) and generator status; and the stage's inputs that
+    are not the network's: each load's scale (1 before any `LoadStep`), the steps
+    of the exciters' Vref and the governors' reference per generator (`RefStep`)."""
 
     branch_status: Float[Array, " n_br"]
     fault_y: Complex[Array, " N"]
@@ -67,6 +79,9 @@ class StageConfig(eqx.Module):
     seg_branch: Int[Array, " n_lf"]
     seg_frac: Float[Array, " n_lf"]
     gen_status: Float[Array, " n_gen"]
+    load_scale: Float[Array, " n_load"]
+    vref_add: Float[Array, " n_gen"]
+    pref_add: Float[Array, " n_gen"]
 
 
 class StageMatrices(eqx.Module):
@@ -75,7 +90,9 @@ class StageMatrices(eqx.Module):
     form, V_bus = Zb (mask * I) + cb + U (Q[:, :p] I + Q[:, p]) (`bus_voltages`):
     Zb (buses x ports) the base network's response to the port currents (shared by
     every stage), mask the ports not held by a bolted fault, U (buses x K) the base
-    response to the K nodes the events touch, Q (K x (ports + 1)) per stage."""
+    response to the K nodes the events touch, Q (K x (ports + 1)) per stage. With
+    load or reference steps among the events: each stage's load scales and
+    reference steps (`StageConfig`); None otherwise."""
 
     A: Complex[Array, "s p p"]
     c: Complex[Array, "s p"]
@@ -85,6 +102,9 @@ class StageMatrices(eqx.Module):
     cb: Complex[Array, "s n"]
     U: Complex[Array, "n k"]
     Q: Complex[Array, "s k p1"]
+    load_scale: Float[Array, "s n_load"] | None = None
+    vref_add: Float[Array, "s n_gen"] | None = None
+    pref_add: Float[Array, "s n_gen"] | None = None
 
     def bus_voltages(
         self, stage: int, i_ports: Complex[Array, "*b p"]
@@ -133,6 +153,7 @@ def stage_configs(grid: Grid, events) -> StageConfig:
         seg_branch=jnp.zeros(n_lf, dtype=jnp.int32),
         seg_frac=jnp.full(n_lf, 0.5),
         gen_status=jnp.asarray(sys_.generators.status, dtype=jnp.float64),
+        **_inputs(sys_),
     )
     out = [cfg]
     lf = 0
@@ -194,9 +215,42 @@ def stage_configs(grid: Grid, events) -> StageConfig:
                 lambda c: c.gen_status, cfg, cfg.gen_status.at[e.gen].set(0.0)
             )
             out.append(cfg)
+        elif isinstance(e, LoadStep):
+            if grid.load_y is None:
+                raise ValueError("a LoadStep needs Grid.load_y (from `initialize`)")
+            bus = jnp.asarray(sys_.loads.bus)[e.load]
+            cfg = eqx.tree_at(
+                lambda c: (c.fault_y, c.load_scale),
+                cfg,
+                (
+                    cfg.fault_y.at[bus].add(e.delta * grid.load_y[e.load]),
+                    cfg.load_scale.at[e.load].add(e.delta),
+                ),
+            )
+            out.append(cfg)
+        elif isinstance(e, RefStep):
+            if e.signal == "Vref":
+                cfg = eqx.tree_at(
+                    lambda c: c.vref_add, cfg, cfg.vref_add.at[e.gen].add(e.delta)
+                )
+            else:
+                cfg = eqx.tree_at(
+                    lambda c: c.pref_add, cfg, cfg.pref_add.at[e.gen].add(e.delta)
+                )
+            out.append(cfg)
         else:
             raise TypeError(f"not an event: {e!r}")
     return jax.tree_util.tree_map(lambda *xs: jnp.stack(xs), *out)
+
+
+def _inputs(sys_: System) -> dict:
+    """The stage inputs before any event: load scales 1, no reference steps."""
+    n_gen = jnp.shape(sys_.generators.bus)[0]
+    return dict(
+        load_scale=jnp.ones(jnp.shape(sys_.loads.bus)[0]),
+        vref_add=jnp.zeros(n_gen),
+        pref_add=jnp.zeros(n_gen),
+    )
 
 
 def _stamp(Y, fr, to, r, x, b, tap, shift, status):
@@ -314,6 +368,7 @@ def _base_config(grid: Grid, n_lf: int) -> StageConfig:
         seg_branch=jnp.zeros(n_lf, dtype=jnp.int32),
         seg_frac=jnp.full(n_lf, 0.5),
         gen_status=jnp.asarray(sys_.generators.status, dtype=jnp.float64),
+        **_inputs(sys_),
     )
 
 
@@ -374,6 +429,10 @@ def _slots(grid: Grid, events):
             branches.append((e.branch, k, k + 1))
         elif isinstance(e, GenTrip):
             nodes.append(gbus[e.gen])
+        elif isinstance(e, LoadStep):
+            nodes.append(jnp.asarray(sys_.loads.bus)[e.load])
+        elif isinstance(e, RefStep):
+            pass  # no change of the network
         else:
             raise TypeError(f"not an event: {e!r}")
     nodes = (
@@ -503,6 +562,7 @@ def stage_matrices(grid: Grid, cfgs: StageConfig, events=()) -> StageMatrices:
         "ik,skj->sij", X[ports], Q[..., :p]
     )
     c = cN[:, ports] + jnp.einsum("ik,sk->si", X[ports], Q[..., p])
+    steps = any(isinstance(e, LoadStep | RefStep) for e in events)
     return StageMatrices(
         A=A,
         c=c,
@@ -512,6 +572,9 @@ def stage_matrices(grid: Grid, cfgs: StageConfig, events=()) -> StageMatrices:
         cb=cN[:, :n],
         U=X[:n],
         Q=Q,
+        load_scale=cfgs.load_scale if steps else None,
+        vref_add=cfgs.vref_add if steps else None,
+        pref_add=cfgs.pref_add if steps else None,
     )
 
 

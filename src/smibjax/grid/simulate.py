@@ -205,7 +205,16 @@ def simulate_case(
 def _same_network(cfgs, stage):
     """Whether the network of `stage` is the one before the events (stage 0): same
     branch and generator status, no fault, no split branch."""
-    keys = ("branch_status", "fault_y", "bolted", "seg_on", "gen_status")
+    keys = (
+        "branch_status",
+        "fault_y",
+        "bolted",
+        "seg_on",
+        "gen_status",
+        "load_scale",
+        "vref_add",
+        "pref_add",
+    )
     out = jnp.asarray(True)
     for k in keys:
         a = getattr(cfgs, k)
@@ -284,7 +293,39 @@ def check_events(case: Case, events) -> None:
     values are not known."""
     check_order(events)
     sys_ = case.system
-    check_positions(events, sys_.n_bus, len(sys_.branches.r), case.n_gen)
+    n_load = jnp.shape(sys_.loads.bus)[0]
+    check_positions(events, sys_.n_bus, len(sys_.branches.r), case.n_gen, n_load)
+    check_steps(case, events)
+
+
+def check_steps(case: Case, events) -> None:
+    """`ParameterError` (one line) for a concrete `RefStep` on a generator without
+    that reference: "Vref" needs an exciter that reads the stabilizer's signal Vs
+    (where the step enters), "Pref" a governor whose reference is one number per
+    device."""
+    from .events import RefStep
+
+    for e in events:
+        if not isinstance(e, RefStep):
+            continue
+        try:
+            g = int(e.gen)
+        except (TypeError, jax.errors.ConcretizationTypeError):
+            continue  # traced: trusted
+        out = "Efd" if e.signal == "Vref" else "Pm"
+        ok = False
+        for c, gens in zip(case.controllers, case.layout.controller_gen, strict=True):
+            if c.output != out or g not in gens:
+                continue
+            ok = "Vs" in c.inputs if out == "Efd" else True
+        if not ok:
+            from .loop import gen_names
+
+            what = "exciter that reads Vs" if out == "Efd" else "governor"
+            raise ParameterError(
+                f"RefStep {e.signal} on generator {gen_names(case)[g]} is not allowed: "
+                f"the generator has no {what} (no {e.signal} to step)"
+            )
 
 
 _simulate_jit = eqx.filter_jit(simulate_case)
