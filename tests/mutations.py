@@ -908,6 +908,83 @@ MUTANTS = [
     ),
 ]
 
+# issue 47: loads as PSS/E models them, the Newton network, load and reference steps
+LOADS = "tests/test_grid_loads.py"
+MUTANTS += [
+    Mutant(
+        "loads-newton-drops-injection",
+        "src/smibjax/grid/network.py",
+        "    return v_lin + W @ i_j, vj, res",
+        "    return v_lin, vj, res",
+        (f"{LOADS}::test_newton_solves_the_whole_network",),
+        "the port voltages leave out the injectors' currents",
+    ),
+    Mutant(
+        "loads-collapse-never",
+        "src/smibjax/grid/network.py",
+        "COLLAPSE_TOL = 1e-6",
+        "COLLAPSE_TOL = 1e9",
+        (f"{LOADS}::test_collapse_is_a_result",),
+        "a network with no solution runs on",
+    ),
+    Mutant(
+        "loads-gradient-stops-at-newton",
+        "src/smibjax/grid/network.py",
+        "    i_j = current(vj)\n",
+        "    i_j = current(jax.lax.stop_gradient(vj))\n",
+        (f"{LOADS}::test_gradient_through_the_newton_solve",),
+        "the derivative ignores how the solved voltages move",
+    ),
+    Mutant(
+        "loads-kp-kink",
+        "src/smibjax/grid/devices/zipload.py",
+        "1 - 2 * (x - 1) ** 2",
+        "1 - (x - 1) ** 2",
+        (f"{LOADS}::test_low_voltage_characteristics",),
+        "PQBRAK's characteristic jumps at PQBRAK/2",
+    ),
+    Mutant(
+        "loads-constant-power-as-impedance",
+        "src/smibjax/grid/devices/zipload.py",
+        "jnp.conj(ref[0]) * kp / m",
+        "jnp.conj(ref[0]) * kp * m",
+        (f"{LOADS}::test_against_psse[constant-power]",),
+        "constant power loads draw a current that grows with the voltage",
+    ),
+    Mutant(
+        "loads-andes-shares-swapped",
+        "src/smibjax/grid/loads.py",
+        "rows += [a * rest, b * rest + f_i, c * rest]",
+        "rows += [c * rest, b * rest + f_i, a * rest]",
+        (f"{LOADS}::test_against_andes_zip_loads",),
+        "the constant power and impedance shares are swapped",
+    ),
+    Mutant(
+        "loads-step-scale-ignored",
+        "src/smibjax/grid/loop.py",
+        "                else scale[np.asarray(lay.injector_src[k], dtype=np.int64)]",
+        "                else jnp.ones(len(lay.injector_src[k]))",
+        (f"{LOADS}::test_load_step_scales_every_part[zip]",),
+        "a load step leaves the constant power and current parts alone",
+    ),
+    Mutant(
+        "loads-step-shunt-missing",
+        "src/smibjax/grid/network.py",
+        "cfg.fault_y.at[bus].add(e.delta * grid.load_y[e.load]),",
+        "cfg.fault_y,",
+        (f"{LOADS}::test_load_step_scales_every_part[impedance]",),
+        "a load step leaves the impedance part alone",
+    ),
+    Mutant(
+        "loads-vref-step-ignored",
+        "src/smibjax/grid/loop.py",
+        "            vs = vs + mats.vref_add[stage][g]",
+        "            vs = vs",
+        (f"{LOADS}::test_reference_steps",),
+        "a Vref step does not reach the exciter",
+    ),
+]
+
 
 def _copy(dst: Path) -> None:
     ignore = shutil.ignore_patterns(

@@ -157,6 +157,16 @@ def add_case_options(p, events: bool = True) -> None:
         default=1.0,
         help="scale every load (P and Q) and the non-slack generation (default 1)",
     )
+    # issue 47: loads as PSS/E models them
+    g.add_argument(
+        "--load-model",
+        metavar="SPEC",
+        help="the loads in dynamics: 'p=P,I,Z q=P,I,Z [pqbrak=0.7] [ibrak=0.5]', the "
+        "shares of each load's constant power kept as constant power, converted to "
+        "constant current and to constant impedance (PSS/E's CONL), or impedance, "
+        "current, power; default: every load a constant impedance "
+        "(docs/loads-events.md)",
+    )
     if events:
         g.add_argument("--fault-bus", type=int, metavar="BUS", help="bus fault at BUS")
         g.add_argument(
@@ -177,6 +187,31 @@ def add_case_options(p, events: bool = True) -> None:
             "--trip-line", metavar="A-B[:CKT]", help="open a line at --fault-time"
         )
         g.add_argument("--trip-gen", metavar="BUS[:ID]", help="trip a generator")
+        # issue 47, part 3: reference steps, load steps and trips
+        g.add_argument(
+            "--step",
+            action="append",
+            default=[],
+            metavar="BUS[:ID]:SIGNAL=DELTA@T",
+            help="step a controller reference of a generator at T s: SIGNAL Vref "
+            "(the exciter's voltage reference, pu) or Pref (the governor's reference, "
+            "in its model's units), e.g. 3:1:Vref=+0.05@1.0; repeatable",
+        )
+        g.add_argument(
+            "--load-step",
+            action="append",
+            default=[],
+            metavar="BUS[:ID]=DELTA@T",
+            help="change a load by DELTA of its power at T s (every part alike), "
+            "e.g. 7:1=+10%%@1.0 or 7=-0.2@2; repeatable",
+        )
+        g.add_argument(
+            "--trip-load",
+            action="append",
+            default=[],
+            metavar="BUS[:ID][@T]",
+            help="trip a load at T s (default --fault-time); repeatable",
+        )
 
 
 def _branch_spec(text: str, flag: str):
@@ -305,6 +340,7 @@ def load(args, initialize: bool = True):
         params = _params(args.param)
         if params:
             case = set_params(case, params)
+        case = _with_load_model(case, args)
         if initialize:
             op, pf = operating_point(case, args.load_factor, args.load_factor)
         else:
@@ -317,6 +353,16 @@ def load(args, initialize: bool = True):
     except ValueError as e:  # parameter checks of the device models
         raise CLIError(str(e).splitlines()[0]) from None
     return case, op, pf
+
+
+def _with_load_model(case, args):
+    """`case` with --load-model's loads (the case itself without the flag)."""
+    spec = getattr(args, "load_model", None)
+    if spec is None:
+        return case
+    from ..grid.loads import parse_load_model, with_load_model
+
+    return with_load_model(case, parse_load_model(spec))
 
 
 def events_from_args(case, args) -> tuple:
@@ -387,26 +433,128 @@ def events_from_args(case, args) -> tuple:
             ev.append(BranchTrip(branch=k, t=t_on))
         if args.trip_gen:
             ev.append(GenTrip(gen=_gen_position(case, args.trip_gen), t=t_on))
+        ev += _step_events(case, args)
         ev.sort(key=lambda e: float(e.switches()[0]))
         check_islanding(case, ev)
+        from ..grid.events import check_order, check_steps
+
+        check_order(ev)
+        check_steps(case, ev)
     except ValueError as e:
-        raise CLIError(str(e)) from None
+        raise CLIError(str(e).splitlines()[0]) from None
     if not ev:
         raise CLIError(
-            "a --case run needs an event: --fault-bus, --fault-line, --trip-line or "
-            "--trip-gen"
+            "a --case run needs an event: --fault-bus, --fault-line, --trip-line, "
+            "--trip-gen, --step, --load-step or --trip-load"
         )
     return tuple(ev)
 
 
-def _gen_position(case, spec: str) -> int:
+def _at_time(text: str, flag: str, t_end: float, default=None) -> tuple[str, float]:
+    """('what', t) from 'what@t' (t in [0, t_end)); `default` when there is no @."""
+    what, at, t = text.rpartition("@") if "@" in text else (text, "", "")
+    if not at:
+        if default is None:
+            raise ValueError(f"{flag} {text!r} is not allowed: give the time as @T (s)")
+        return text, float(default)
+    try:
+        tv = float(t)
+    except ValueError:
+        raise ValueError(
+            f"{flag} {text!r} is not allowed: {t!r} is not a time (s)"
+        ) from None
+    if not (0 <= tv < t_end):
+        raise ValueError(
+            f"{flag} {text!r} is not allowed: the time {tv:g} s must lie in [0, "
+            f"--t-end {t_end:g})"
+        )
+    return what, tv
+
+
+def _delta(text: str, flag: str, spec: str) -> float:
+    """A signed change: '+0.05', '-0.1', '+10%' (a percentage of the load)."""
+    pct = text.endswith("%")
+    try:
+        v = float(text[:-1] if pct else text)
+    except ValueError:
+        raise ValueError(
+            f"{flag} {spec!r} is not allowed: {text!r} is not a number (or N%)"
+        ) from None
+    if not math.isfinite(v):
+        raise ValueError(f"{flag} {spec!r} is not allowed: the change must be finite")
+    return v / 100 if pct else v
+
+
+def _load_position(case, spec: str, flag: str) -> int:
+    """The position of load BUS[:ID] (ID 1 when omitted) in `System.loads`."""
+    ld = case.system.loads
+    nums = np.asarray(case.system.buses.number)[np.asarray(ld.bus, dtype=int)]
+    ids = ld.ident or ("1",) * len(nums)
+    names = [f"{int(b)}:{str(i).strip()}" for b, i in zip(nums, ids, strict=True)]
+    name = spec.strip() if ":" in spec else f"{spec.strip()}:1"
+    if name not in names:
+        raise ValueError(
+            f"{flag} {spec}: no load {name} (have {', '.join(names[:12])}"
+            f"{' ...' if len(names) > 12 else ''})"
+        )
+    return names.index(name)
+
+
+def _step_events(case, args) -> list:
+    """The --step, --load-step and --trip-load events."""
+    from ..grid.events import REF_SIGNALS, LoadStep, RefStep
+
+    out = []
+    for spec in args.step:
+        body, t = _at_time(spec, "--step", args.t_end)
+        target, eq, d = body.partition("=")
+        gen, _, signal = target.rpartition(":")
+        if not eq or not gen or signal not in REF_SIGNALS:
+            raise ValueError(
+                f"--step {spec!r} is not allowed: write BUS[:ID]:SIGNAL=DELTA@T with "
+                f"SIGNAL one of {', '.join(REF_SIGNALS)} (e.g. 3:1:Vref=+0.05@1.0)"
+            )
+        out.append(
+            RefStep(
+                gen=_gen_position(case, gen, "--step"),
+                delta=_delta(d, "--step", spec),
+                t=t,
+                signal=signal,
+            )
+        )
+    for spec in args.load_step:
+        body, t = _at_time(spec, "--load-step", args.t_end)
+        where, eq, d = body.partition("=")
+        if not eq:
+            raise ValueError(
+                f"--load-step {spec!r} is not allowed: write BUS[:ID]=DELTA@T (e.g. "
+                "7:1=+10%@1.0)"
+            )
+        delta = _delta(d, "--load-step", spec)
+        if delta < -1:
+            raise ValueError(
+                f"--load-step {spec!r} is not allowed: a load cannot fall by more "
+                "than 100 % (-100 % trips it)"
+            )
+        out.append(
+            LoadStep(load=_load_position(case, where, "--load-step"), delta=delta, t=t)
+        )
+    for spec in args.trip_load:
+        where, t = _at_time(spec, "--trip-load", args.t_end, default=args.fault_time)
+        out.append(
+            LoadStep(load=_load_position(case, where, "--trip-load"), delta=-1.0, t=t)
+        )
+    return out
+
+
+def _gen_position(case, spec: str, flag: str = "--trip-gen") -> int:
     from ..grid.loop import gen_names
 
     name = spec if ":" in spec else f"{spec}:1"
     names = gen_names(case)
     if name not in names:
         raise ValueError(
-            f"--trip-gen {spec}: no generator {name} (have {', '.join(names)})"
+            f"{flag} {spec}: no generator {name} (have {', '.join(names)})"
         )
     return names.index(name)
 
@@ -448,7 +596,7 @@ def _solver_kw(args) -> dict:
 
 def _describe(case, pf) -> str:
     counts = {}
-    for g in (*case.machines, *case.controllers, *case.svcs):
+    for g in (*case.machines, *case.controllers, *case.svcs, *case.injectors):
         counts[type(g).__name__] = counts.get(type(g).__name__, 0) + len(
             np.atleast_1d(getattr(g, "gen", getattr(g, "bus", [])))
         )
@@ -488,7 +636,24 @@ def _event_text(case, ev) -> str:
             out.append(
                 f"trip generator {gen_names(case)[int(e.gen)]} at {float(e.t):g} s"
             )
+        else:
+            out.append(f"{_step_text(case, e)} at {float(e.t):g} s")
     return "; ".join(out)
+
+
+def _step_text(case, e) -> str:
+    """A load step or trip, or a reference step, in words (PSS/E numbers)."""
+    from ..grid.events import LoadStep
+    from ..grid.loop import gen_names
+
+    if isinstance(e, LoadStep):
+        ld = case.system.loads
+        k = int(e.load)
+        bus = int(np.asarray(case.system.buses.number)[int(ld.bus[k])])
+        name = f"{bus}:{str(ld.ident[k]).strip() if ld.ident else '1'}"
+        d = float(e.delta)
+        return f"trip load {name}" if d == -1 else f"load {name} {100 * d:+g} %"
+    return f"{e.signal} of {gen_names(case)[int(e.gen)]} {float(e.delta):+g}"
 
 
 # ---- the memory plan of grid runs (issue 46) ----
@@ -583,11 +748,20 @@ def run_simulate(args) -> int:
     verdict = (
         "stable"
         if bool(tr.stable)
-        else ("step budget exhausted" if bool(tr.exhausted) else "UNSTABLE")
+        else (
+            "step budget exhausted"
+            if bool(tr.exhausted)
+            else ("VOLTAGE COLLAPSE" if bool(tr.collapsed) else "UNSTABLE")
+        )
     )
     names = gen_names(case)
     print(f"{verdict} ({wall:.1f} s)")
-    if not bool(tr.stable) and not bool(tr.exhausted):
+    if bool(tr.collapsed):
+        print(
+            f"  the network has no solution from t = {float(tr.t_collapse):.3f} s "
+            "(voltage collapse: constant power or current loads past the nose point)"
+        )
+    elif not bool(tr.stable) and not bool(tr.exhausted):
         print(
             f"  synchronism lost at t = {float(tr.t_unstable):.3f} s (|angle - COI| > pi)"
         )
@@ -622,6 +796,9 @@ def run_simulate(args) -> int:
                     "stable": bool(tr.stable),
                     "t_unstable": float(tr.t_unstable),
                     "exhausted": bool(tr.exhausted),
+                    "collapsed": bool(tr.collapsed),
+                    "t_collapse": float(tr.t_collapse),
+                    "load_model": getattr(args, "load_model", None),
                     "rtol": args.rtol,
                     "atol": args.atol,
                     "params": _params(args.param),
@@ -680,6 +857,8 @@ def event_marks(case, ev) -> list[tuple[float, str]]:
             marks.append((float(e.t), f"reclose {line(e.branch)}"))
         elif isinstance(e, GenTrip):
             marks.append((float(e.t), f"trip G {gen_names(case)[int(e.gen)]}"))
+        else:
+            marks.append((float(e.t), _step_text(case, e)))
     merged: dict[float, list[str]] = {}
     for t, text in sorted(marks, key=lambda m: m[0]):
         merged.setdefault(round(t, 9), []).append(text)

@@ -48,6 +48,12 @@ if TYPE_CHECKING:  # the public names; loaded on first use (`__getattr__`)
     from .events import BusFault as BusFault
     from .events import GenTrip as GenTrip
     from .events import LineFault as LineFault
+
+    # issue 47: load and reference steps, loads as PSS/E models them
+    from .events import LoadStep as LoadStep
+    from .events import RefStep as RefStep
+    from .loads import LoadModel as LoadModel
+    from .loads import with_load_model as with_load_model
     from .loop import Case as Case
     from .loop import Operating as Operating
     from .metrics import GridMetrics as GridMetrics

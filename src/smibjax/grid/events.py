@@ -1,4 +1,5 @@
-"""Events as data: faults, branch trips and reclosures, generator trips.
+"""Events as data: faults, branch trips and reclosures, generator trips, load steps
+and trips, controller reference steps.
 
 Each event is an equinox Module whose fields may be traced (times, locations, fault
 impedances, even the faulted bus or branch position), so a batch of scenarios is a
@@ -17,6 +18,7 @@ from __future__ import annotations
 from typing import TYPE_CHECKING
 
 import equinox as eqx
+import jax
 import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float, Int
@@ -33,10 +35,14 @@ __all__ = [
     "BranchTrip",
     "BranchClose",
     "GenTrip",
+    "LoadStep",
+    "RefStep",
+    "REF_SIGNALS",
     "Event",
     "switch_times",
     "check_order",
     "check_events",
+    "check_steps",
     "check_positions",
 ]
 
@@ -156,7 +162,69 @@ class GenTrip(eqx.Module):
         return (self.t,)
 
 
-Event = BusFault | LineFault | BranchTrip | BranchClose | GenTrip
+# issue 47, part 3: load steps and trips, reference steps
+
+
+class LoadStep(eqx.Module):
+    """The load at position `load` of `System.loads` changes by `delta` times its
+    power-flow power at `t` (s): +0.1 is a 10 % step up, -1 trips it. Every part of
+    the load (constant impedance, and with a load model constant power and constant
+    current) scales alike; the impedance part is a shunt change at its bus (an
+    exact low-rank update of the network, like a fault's)."""
+
+    load: Int[Array, ""] = eqx.field(converter=_i)
+    delta: Scalar = eqx.field(converter=_f)
+    t: Scalar = eqx.field(converter=_f)
+
+    def __check_init__(self):
+        _check(self, "load", ("t",))
+        if is_concrete(self.delta):
+            d = np.asarray(self.delta)
+            require(
+                np.isfinite(d) & (d >= -1),
+                "LoadStep",
+                "delta",
+                d,
+                "must be finite and >= -1 (a relative change; -1 trips the load)",
+            )
+
+    def switches(self):
+        return (self.t,)
+
+
+REF_SIGNALS = ("Vref", "Pref")
+
+
+class RefStep(eqx.Module):
+    """A step of `delta` at `t` (s) in a reference of the controller at generator
+    position `gen`: `signal` "Vref" (the exciter's voltage reference, pu: the step
+    enters the exciter's summing junction where Vref and the stabilizer's signal
+    VOTHSG enter, so it is a step of Vref for every PSS/E exciter) or "Pref" (the
+    governor's reference, in that model's own reference units: PSS/E's PREF or
+    speed reference, the `ref` its `init` returns; e.g. TGOV1's R Pm0, IEEEG1's
+    P0)."""
+
+    gen: Int[Array, ""] = eqx.field(converter=_i)
+    delta: Scalar = eqx.field(converter=_f)
+    t: Scalar = eqx.field(converter=_f)
+    signal: str = eqx.field(static=True, default="Vref")
+
+    def __check_init__(self):
+        _check(self, "gen", ("t",))
+        if self.signal not in REF_SIGNALS:
+            raise ParameterError(
+                f"RefStep.signal = {self.signal!r} is not allowed: one of "
+                f"{', '.join(REF_SIGNALS)}"
+            )
+        if is_concrete(self.delta):
+            d = np.asarray(self.delta)
+            require(np.isfinite(d), "RefStep", "delta", d, "must be finite")
+
+    def switches(self):
+        return (self.t,)
+
+
+Event = BusFault | LineFault | BranchTrip | BranchClose | GenTrip | LoadStep | RefStep
 
 
 def switch_times(events) -> Float[Array, " n_switch"]:
@@ -186,7 +254,9 @@ def check_order(events) -> None:
         )
 
 
-def check_positions(events, n_bus: int, n_branch: int, n_gen: int) -> None:
+def check_positions(
+    events, n_bus: int, n_branch: int, n_gen: int, n_load: int | None = None
+) -> None:
     """`ParameterError` (one line) if a concrete position is past the case's buses,
     branches or generators (positions are 0-based; the command line takes PSS/E
     numbers)."""
@@ -195,8 +265,9 @@ def check_positions(events, n_bus: int, n_branch: int, n_gen: int) -> None:
             ("bus", n_bus, "buses"),
             ("branch", n_branch, "branches"),
             ("gen", n_gen, "generators"),
+            ("load", n_load, "loads"),
         ):
-            if not hasattr(e, field):
+            if not hasattr(e, field) or n is None:
                 continue
             p = getattr(e, field)
             if is_concrete(p):
@@ -216,4 +287,36 @@ def check_events(case: Case, events) -> None:
     values are not known."""
     check_order(events)
     sys_ = case.system
-    check_positions(events, sys_.n_bus, len(sys_.branches.r), case.n_gen)
+    n_load = jnp.shape(sys_.loads.bus)[0]
+    check_positions(events, sys_.n_bus, len(sys_.branches.r), case.n_gen, n_load)
+    check_steps(case, events)
+
+
+def check_steps(case: Case, events) -> None:
+    """`ParameterError` (one line) for a concrete `RefStep` on a generator without
+    that reference: "Vref" needs an exciter that reads the stabilizer's signal Vs
+    (where the step enters), "Pref" a governor whose reference is one number per
+    device."""
+    from .events import RefStep
+
+    for e in events:
+        if not isinstance(e, RefStep):
+            continue
+        try:
+            g = int(e.gen)
+        except (TypeError, jax.errors.ConcretizationTypeError):
+            continue  # traced: trusted
+        out = "Efd" if e.signal == "Vref" else "Pm"
+        ok = False
+        for c, gens in zip(case.controllers, case.layout.controller_gen, strict=True):
+            if c.output != out or g not in gens:
+                continue
+            ok = "Vs" in c.inputs if out == "Efd" else True
+        if not ok:
+            from .loop import gen_names
+
+            what = "exciter that reads Vs" if out == "Efd" else "governor"
+            raise ParameterError(
+                f"RefStep {e.signal} on generator {gen_names(case)[g]} is not allowed: "
+                f"the generator has no {what} (no {e.signal} to step)"
+            )

@@ -43,7 +43,7 @@ def run_size(case, n_samples: float, n_events: int = 1, n_lf: int = 0) -> RunSiz
     p = len(case.layout.ports)
     g = case.n_gen
     n_state = 0
-    for grp in (*case.machines, *case.controllers, *case.svcs):
+    for grp in (*case.machines, *case.controllers, *case.svcs, *case.injectors):
         k = len(getattr(grp, "gen", getattr(grp, "bus", ())))
         n_state += len(grp.state_names) * max(k, 1)
     stages = 1 + 2 * n_events

@@ -26,7 +26,15 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Bool, Complex, Float, Int
 
-from .events import BranchClose, BranchTrip, BusFault, GenTrip, LineFault
+from .events import (
+    BranchClose,
+    BranchTrip,
+    BusFault,
+    GenTrip,
+    LineFault,
+    LoadStep,
+    RefStep,
+)
 from .system import System
 
 __all__ = [
@@ -53,12 +61,16 @@ class Grid(eqx.Module):
     ports: Int[np.ndarray, " n_port"]
     dirichlet: Int[np.ndarray, " n_dir"]
     v_dirichlet: Complex[Array, " n_dir"]
+    # each load's constant-impedance part (pu; a `LoadStep` scales it); None: unknown
+    load_y: Complex[Array, " n_load"] | None = None
 
 
 class StageConfig(eqx.Module):
-    """The network in one stage: branch status, fault shunts and bolted-fault masks
-    per node, the split branches of line faults (one per spare node) and generator
-    status."""
+    """The network in one stage: branch status, fault shunts (and the shunt changes
+    of load steps) and bolted-fault masks per node, the split branches of line
+    faults (one per spare node) and generator status; and the stage's inputs that
+    are not the network's: each load's scale (1 before any `LoadStep`), the steps
+    of the exciters' Vref and the governors' reference per generator (`RefStep`)."""
 
     branch_status: Float[Array, " n_br"]
     fault_y: Complex[Array, " N"]
@@ -67,6 +79,9 @@ class StageConfig(eqx.Module):
     seg_branch: Int[Array, " n_lf"]
     seg_frac: Float[Array, " n_lf"]
     gen_status: Float[Array, " n_gen"]
+    load_scale: Float[Array, " n_load"]
+    vref_add: Float[Array, " n_gen"]
+    pref_add: Float[Array, " n_gen"]
 
 
 class StageMatrices(eqx.Module):
@@ -75,7 +90,9 @@ class StageMatrices(eqx.Module):
     form, V_bus = Zb (mask * I) + cb + U (Q[:, :p] I + Q[:, p]) (`bus_voltages`):
     Zb (buses x ports) the base network's response to the port currents (shared by
     every stage), mask the ports not held by a bolted fault, U (buses x K) the base
-    response to the K nodes the events touch, Q (K x (ports + 1)) per stage."""
+    response to the K nodes the events touch, Q (K x (ports + 1)) per stage. With
+    load or reference steps among the events: each stage's load scales and
+    reference steps (`StageConfig`); None otherwise."""
 
     A: Complex[Array, "s p p"]
     c: Complex[Array, "s p"]
@@ -85,6 +102,9 @@ class StageMatrices(eqx.Module):
     cb: Complex[Array, "s n"]
     U: Complex[Array, "n k"]
     Q: Complex[Array, "s k p1"]
+    load_scale: Float[Array, "s n_load"] | None = None
+    vref_add: Float[Array, "s n_gen"] | None = None
+    pref_add: Float[Array, "s n_gen"] | None = None
 
     def bus_voltages(
         self, stage: int, i_ports: Complex[Array, "*b p"]
@@ -133,6 +153,7 @@ def stage_configs(grid: Grid, events) -> StageConfig:
         seg_branch=jnp.zeros(n_lf, dtype=jnp.int32),
         seg_frac=jnp.full(n_lf, 0.5),
         gen_status=jnp.asarray(sys_.generators.status, dtype=jnp.float64),
+        **_inputs(sys_),
     )
     out = [cfg]
     lf = 0
@@ -194,9 +215,42 @@ def stage_configs(grid: Grid, events) -> StageConfig:
                 lambda c: c.gen_status, cfg, cfg.gen_status.at[e.gen].set(0.0)
             )
             out.append(cfg)
+        elif isinstance(e, LoadStep):
+            if grid.load_y is None:
+                raise ValueError("a LoadStep needs Grid.load_y (from `initialize`)")
+            bus = jnp.asarray(sys_.loads.bus)[e.load]
+            cfg = eqx.tree_at(
+                lambda c: (c.fault_y, c.load_scale),
+                cfg,
+                (
+                    cfg.fault_y.at[bus].add(e.delta * grid.load_y[e.load]),
+                    cfg.load_scale.at[e.load].add(e.delta),
+                ),
+            )
+            out.append(cfg)
+        elif isinstance(e, RefStep):
+            if e.signal == "Vref":
+                cfg = eqx.tree_at(
+                    lambda c: c.vref_add, cfg, cfg.vref_add.at[e.gen].add(e.delta)
+                )
+            else:
+                cfg = eqx.tree_at(
+                    lambda c: c.pref_add, cfg, cfg.pref_add.at[e.gen].add(e.delta)
+                )
+            out.append(cfg)
         else:
             raise TypeError(f"not an event: {e!r}")
     return jax.tree_util.tree_map(lambda *xs: jnp.stack(xs), *out)
+
+
+def _inputs(sys_: System) -> dict:
+    """The stage inputs before any event: load scales 1, no reference steps."""
+    n_gen = jnp.shape(sys_.generators.bus)[0]
+    return dict(
+        load_scale=jnp.ones(jnp.shape(sys_.loads.bus)[0]),
+        vref_add=jnp.zeros(n_gen),
+        pref_add=jnp.zeros(n_gen),
+    )
 
 
 def _stamp(Y, fr, to, r, x, b, tap, shift, status):
@@ -314,6 +368,7 @@ def _base_config(grid: Grid, n_lf: int) -> StageConfig:
         seg_branch=jnp.zeros(n_lf, dtype=jnp.int32),
         seg_frac=jnp.full(n_lf, 0.5),
         gen_status=jnp.asarray(sys_.generators.status, dtype=jnp.float64),
+        **_inputs(sys_),
     )
 
 
@@ -374,6 +429,10 @@ def _slots(grid: Grid, events):
             branches.append((e.branch, k, k + 1))
         elif isinstance(e, GenTrip):
             nodes.append(gbus[e.gen])
+        elif isinstance(e, LoadStep):
+            nodes.append(jnp.asarray(sys_.loads.bus)[e.load])
+        elif isinstance(e, RefStep):
+            pass  # no change of the network
         else:
             raise TypeError(f"not an event: {e!r}")
     nodes = (
@@ -503,6 +562,7 @@ def stage_matrices(grid: Grid, cfgs: StageConfig, events=()) -> StageMatrices:
         "ik,skj->sij", X[ports], Q[..., :p]
     )
     c = cN[:, ports] + jnp.einsum("ik,sk->si", X[ports], Q[..., p])
+    steps = any(isinstance(e, LoadStep | RefStep) for e in events)
     return StageMatrices(
         A=A,
         c=c,
@@ -512,6 +572,9 @@ def stage_matrices(grid: Grid, cfgs: StageConfig, events=()) -> StageMatrices:
         cb=cN[:, :n],
         U=X[:n],
         Q=Q,
+        load_scale=cfgs.load_scale if steps else None,
+        vref_add=cfgs.vref_add if steps else None,
+        pref_add=cfgs.pref_add if steps else None,
     )
 
 
@@ -528,3 +591,76 @@ def solve_ports(
         return rhs
     M = jnp.eye(A.shape[0], dtype=A.dtype) + A * y_shunt[None, :]
     return jnp.linalg.solve(M, rhs)
+
+
+# ---- injectors: the nonlinear network (issue 47) ----
+
+NEWTON_ITERS = 6  # Newton iterations per network solution with injectors
+COLLAPSE_TOL = 1e-6  # |residual| (pu voltage) above which the network has no solution
+
+
+def solve_injections(
+    A: Complex[Array, "p p"],
+    c: Complex[Array, " p"],
+    i_ports: Complex[Array, " p"],
+    y_shunt: Complex[Array, " p"] | None,
+    inj_ports,
+    current,
+    y_start: Complex[Array, " J"],
+    iters: int | None = None,
+) -> tuple[Complex[Array, " p"], Complex[Array, " J"], Float[Array, ""]]:
+    """The port voltages with current injectors at ports `inj_ports` (J static port
+    positions, unique): V = A (I + P I_inj(V_J) - y_shunt V) + c, P the injector
+    ports' unit vectors. `current(v_J) -> (J,)` is the injectors' current into the
+    network summed per injector port (pu); each port's injection must depend on
+    that port's voltage only.
+
+    Reduced to the injector ports: with M = 1 + A diag(y_shunt) (the identity
+    without shunts), W = M^-1 A P and V_lin = M^-1 (A I + c), V_J solves
+    g(V_J) = V_J - W_J I_inj(V_J) - V_lin,J = 0, and V = V_lin + W I_inj(V_J).
+    Newton's method on the 2J real unknowns (Re, Im) from the linear solution with
+    the injectors replaced by admittances `y_start` (their t = 0 equivalent: the
+    start solves (1 + W_J diag(y_start)) V_J = V_lin,J); a fixed number `iters` of
+    iterations (None: `NEWTON_ITERS`; jittable, vmappable; differentiable by unrolling, which at
+    convergence is the implicit-function derivative). The Jacobian is exact: the
+    injectors' per-port derivatives dI/dRe V and dI/dIm V come from two
+    forward-mode products. A non-finite step is not taken.
+
+    Returns (V (p,), V_J (J,), residual): residual = max |g(V_J)| (pu) at the
+    returned voltages; above `COLLAPSE_TOL` (or not finite) the network has no
+    solution the iteration could reach (voltage collapse)."""
+    J = jnp.asarray(inj_ports, dtype=jnp.int32)
+    n_j = J.shape[0]
+    rhs = A @ i_ports + c
+    if y_shunt is None:
+        v_lin = rhs
+        W = A[:, J]
+    else:
+        M = jnp.eye(A.shape[0], dtype=A.dtype) + A * y_shunt[None, :]
+        X = jnp.linalg.solve(M, jnp.concatenate([rhs[:, None], A[:, J]], axis=1))
+        v_lin, W = X[:, 0], X[:, 1:]
+    WJ = W[J]
+    d = v_lin[J]
+    eye = jnp.eye(n_j, dtype=A.dtype)
+    vj = jnp.linalg.solve(eye + WJ * y_start[None, :], d)
+    ones = jnp.ones(n_j, dtype=A.dtype)
+    eye2 = jnp.eye(2 * n_j)
+
+    def step(_, vj):
+        i0, a = jax.jvp(current, (vj,), (ones,))
+        _, b = jax.jvp(current, (vj,), (1j * ones,))
+        g = vj - WJ @ i0 - d
+        Wa, Wb = WJ * a[None, :], WJ * b[None, :]
+        jac = eye2 - jnp.block(
+            [[jnp.real(Wa), jnp.real(Wb)], [jnp.imag(Wa), jnp.imag(Wb)]]
+        )
+        dx = jnp.linalg.solve(jac, -jnp.concatenate([jnp.real(g), jnp.imag(g)]))
+        new = vj + dx[:n_j] + 1j * dx[n_j:]
+        return jnp.where(jnp.all(jnp.isfinite(new)), new, vj)
+
+    iters = NEWTON_ITERS if iters is None else iters
+    vj = jax.lax.fori_loop(0, iters, step, vj)
+    i_j = current(vj)
+    res = jnp.max(jnp.abs(vj - WJ @ i_j - d))
+    res = jnp.where(jnp.isfinite(res), res, jnp.inf)
+    return v_lin + W @ i_j, vj, res

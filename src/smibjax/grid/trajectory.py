@@ -26,7 +26,11 @@ class GridTrajectory(eqx.Module):
     infinite bus) is in service at the sample, 0 from its trip; `delta_ref`: the
     angles (rad, synchronous frame) of the post-disturbance equilibrium where it is
     known, the operating point's when the network in force at t_end is the one
-    before the events (faults cleared, branches reclosed), NaN otherwise."""
+    before the events (faults cleared, branches reclosed), NaN otherwise.
+    `collapsed`: the run stopped because the network had no solution (voltage
+    collapse with constant power loads; `stable` is then False and `t_unstable` =
+    `t_collapse`, the time of the first accepted step without a solution; inf if
+    none)."""
 
     ts: Float[Array, " T"]
     delta: Float[Array, "T n_gen"]
@@ -44,6 +48,8 @@ class GridTrajectory(eqx.Module):
     y_final: Float[Array, " n_state"]
     gen_on: Float[Array, "T n_gen"]
     delta_ref: Float[Array, " n_gen"]
+    collapsed: Bool[Array, ""]
+    t_collapse: Float[Array, ""]
 
 
 def coi_weights(case: Case, gen_status) -> Float[Array, " n_gen"]:
