@@ -358,6 +358,7 @@ def _damaged_stored_program_falls_back_silently(cache: Path, cwd: Path, out) -> 
         ),
         (["simulate", "--out", "run.txt"], "the suffix must be one of .npz"),
         (["simulate", "--case", "kundur", "--out", "r.xlsx"], "suffix must be one"),
+        (["simulate", "--case", "kundur"], "a --case run needs an event"),
     ],
 )
 def test_bad_files_and_outputs_are_refused_before_jax_loads(argv, needle):

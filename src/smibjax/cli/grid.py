@@ -122,6 +122,21 @@ def precheck_case(args) -> None:
             )
 
 
+_EVENT_FLAGS = ("fault_bus", "fault_line", "trip_line", "trip_gen")
+_EVENT_FLAGS += ("step", "load_step", "trip_load")
+
+
+def require_an_event(args) -> None:
+    """`simulate --case` needs at least one event; CLIError (one line) otherwise.
+    Needs no JAX: `precheck` runs it before JAX starts."""
+    if any(getattr(args, a, None) not in (None, [], (), "") for a in _EVENT_FLAGS):
+        return
+    raise CLIError(
+        "a --case run needs an event: --fault-bus, --fault-line, --trip-line, "
+        "--trip-gen, --step, --load-step or --trip-load"
+    )
+
+
 def add_case_options(p, events: bool = True) -> None:
     """The options that choose a multi-machine case (and, for `events`, the events
     of one run)."""
@@ -443,10 +458,7 @@ def events_from_args(case, args) -> tuple:
     except ValueError as e:
         raise CLIError(str(e).splitlines()[0]) from None
     if not ev:
-        raise CLIError(
-            "a --case run needs an event: --fault-bus, --fault-line, --trip-line, "
-            "--trip-gen, --step, --load-step or --trip-load"
-        )
+        require_an_event(args)
     return tuple(ev)
 
 

@@ -171,12 +171,21 @@ def _outputs(args) -> tuple[Path | None, Path | None]:
 
 
 def precheck(args) -> None:
-    """Before JAX starts: --out's suffix names a format (.npz, .csv, .mat, .cfg) and
-    the file (with COMTRADE's .dat) is new or --force is given; CLIError."""
+    """Before JAX starts: a --case run has an event; --out's suffix names a format
+    (.npz, .csv, .mat, .cfg) and the file (with COMTRADE's .dat) is new or --force is
+    given; CLIError."""
+
+    if args.out:  # (None, or `--out` alone: a new name under runs/)
+        _precheck_out(args)
+    if getattr(args, "case", None):
+        from .grid import require_an_event
+
+        require_an_event(args)
+
+
+def _precheck_out(args) -> None:
     from .._export import FormatError, check_trajectory_path, companion_files
 
-    if not args.out:  # None, or `--out` alone: a new name under runs/
-        return
     try:
         out = check_trajectory_path(args.out, "--out")
     except FormatError as e:
