@@ -13,6 +13,7 @@ machine.
 from __future__ import annotations
 
 from collections import defaultdict
+from dataclasses import replace
 from importlib import resources
 from pathlib import Path
 
@@ -52,6 +53,7 @@ GOVERNORS = ("TGOV1",)
 # governors and stabilizers of issue 45
 STABILIZERS += ("ST2CUT", "STAB2A", "PSS2A", "PSS2B")
 GOVERNORS += ("IEEEG1", "HYGOV", "IEESGO", "GAST")
+GOVERNORS += ("GGOV1",)  # issue 45 (GGOV1)
 SVCS = ("CSVGN1",)
 SUPPORTED = MACHINES + EXCITERS + STABILIZERS + GOVERNORS + SVCS
 
@@ -209,7 +211,13 @@ def build_case(system, records, name: str = "") -> Case:
                     f"{r.file}:{r.line}: {model} for generator {r.ident!r} at bus "
                     f"{r.bus} has no machine record"
                 )
-        controllers.append(_located(_model_class(model), entries))
+        cls = _model_class(model)
+        if getattr(cls, "needs_mbase", False):  # issue 45 (GGOV1): powers on Trate
+            entries = [
+                (g, replace(r, params={**r.params, "MBASE": float(mbase[g])}))
+                for g, r in entries
+            ]
+        controllers.append(_located(cls, entries))
     unknown = sorted(set(by_model) - set(SUPPORTED))
     if unknown:
         raise CaseError(

@@ -1272,6 +1272,45 @@ DYR_MODELS: dict[str, tuple[str, ...]] = {
         "VSTMAX",
         "VSTMIN",
     ),
+    # issue 45 (GGOV1, devices/ggov1.py): PSS/E Model Library CON order, the ICONs
+    # Rselect and Flag first, as PSS/E writes them
+    "GGOV1": (
+        "Rselect",
+        "Flag",
+        "R",
+        "Tpelec",
+        "maxerr",
+        "minerr",
+        "Kpgov",
+        "Kigov",
+        "Kdgov",
+        "Tdgov",
+        "Vmax",
+        "Vmin",
+        "Tact",
+        "Kturb",
+        "Wfnl",
+        "Tb",
+        "Tc",
+        "Teng",
+        "Tfload",
+        "Kpload",
+        "Kiload",
+        "Ldref",
+        "Dm",
+        "Ropen",
+        "Rclose",
+        "Kimw",
+        "Aset",
+        "Ka",
+        "Ta",
+        "Trate",
+        "db",
+        "Tsa",
+        "Tsb",
+        "Rup",
+        "Rdown",
+    ),
 }
 """The dyr models read, each with its parameter names in the order of the dyr record
 (the PSS/E CON order; IEEEST's two ICONs, the input signal code ICS and the remote bus
@@ -1319,6 +1358,8 @@ DYR_KINDS: dict[str, str] = {
     "GAST": "governor",
     "PSS2A": "pss",
     "PSS2B": "pss",
+    # issue 45 (GGOV1)
+    "GGOV1": "governor",
 }
 """What each dyr model is to its generator: a machine (one per generator in service),
 or an exciter, a load compensator, a stabilizer (pss) or a governor (at most one
