@@ -54,7 +54,7 @@ def test_init_is_an_exact_equilibrium_for_every_flag():
     y0 = np.linspace(0.3, 0.8, k)
     meas = _meas(np.linspace(-2e-3, 2e-3, k), y0 * 0.98)
     x0, ref = dev.init(jnp.asarray(y0), meas)
-    assert x0.shape == (len(GGOV1.state_names), k) and ref.shape == (2, k)
+    assert x0.shape == (len(GGOV1.state_names), k) and ref.shape == (6, k)
     assert float(jnp.max(jnp.abs(dev.rhs(x0, meas, ref)))) < 1e-12
     np.testing.assert_allclose(dev.out(x0, meas, ref), y0, rtol=0, atol=1e-12)
 
@@ -368,8 +368,18 @@ def test_bad_parameters_are_refused_in_one_line(over, match):
         _dev(over)
 
 
-def test_an_operating_point_beyond_the_load_limit_is_refused():
-    """Pm0 = 1.1 pu of MBASE is 1.13 pu of Trate, above Ldref = 1: the load limiter
-    would be in control at rest."""
-    with pytest.raises(ParameterError, match=r"^GGOV1\.Pm0 = \[1\.1\] is not allowed"):
-        _dev({}).init(jnp.array([1.1]), _meas([0.0], [1.1]))
+def test_limits_the_operating_point_lies_beyond_move_to_it():
+    """Pm0 = 1.1 pu of MBASE is a stroke of 1.065 (Vmax = 1) and an exhaust
+    temperature above the load reference Ldref/Kturb + Wfnl: the unit starts on
+    the moved limits, at rest, and a 1% underspeed cannot open the valve further."""
+    dev = _dev({})
+    m = _meas([0.0], [1.1])
+    x0, ref = dev.init(jnp.array([1.1]), m)
+    s0 = 1.1 * 400 / 390.24 / 1.3041 + 0.2
+    np.testing.assert_allclose(ref[3], s0, rtol=1e-14)  # Vmax in force
+    np.testing.assert_allclose(ref[4], s0, rtol=1e-14)  # the load limiter's ceiling
+    assert float(jnp.max(jnp.abs(dev.rhs(x0, m, ref)))) < 1e-12
+    m1 = _meas([-0.01], [1.1])
+    assert float(dev.rhs(x0, m1, ref)[6, 0]) == 0.0  # the stroke stays on Vmax
+    with pytest.raises(ParameterError, match=r"^GGOV1\.Pm0 = \[-1\.\] is not allowed"):
+        dev.init(jnp.array([-1.0]), _meas([0.0], [-1.0]))

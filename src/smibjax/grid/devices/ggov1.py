@@ -52,17 +52,22 @@ integrates d fsr/dt = Ka (Aset - accel) as PSS/E's does.
 At rest (omega0 the operating point's speed deviation): Pm_T0 = Pm0 MBASE / Trate,
 wf0 = (Pm_T0 + Dm omega0 [Dm > 0]) / Kturb + Wfnl, every stroke state wf0 / (1 +
 omega0 [Flag]), texm0 = wf0 (1 + omega0)^min(Dm, 0), pe0 = Pmwset = Pe_T0, x_mw0 =
-0, e0 = 0, and Pref = omega0 + R fb0 (PSS/E's speed-load reference): `ref` holds
-(Pref, Pmwset). The governor must be the gate's lowest input: the operating point's
-stroke within [Vmin, Vmax], at most 1 (the load limiter's ceiling) and at most the
-load limit Ldref/Kturb + Wfnl - texm0 >= 0 (refused otherwise), and Aset >= 0.
+0, e0 = 0, and Pref = omega0 + R fb0 (PSS/E's speed-load reference). The governor
+must be the gate's lowest input at rest: where the operating point's stroke lies
+beyond Vmax, Vmin or the load limiter's ceiling 1, or its exhaust temperature above
+the load reference Ldref/Kturb + Wfnl, that limit is moved to the operating point
+(the unit starts on it; PowerWorld's "adjust limits at initialization", GridPACK's
+option) instead of starting off equilibrium as PSS/E does after reporting it:
+ACTIVSg2000's units at 5423 and 4083 start 0.6% and 0.05% above Vmax = 1. `ref`
+holds (Pref, Pmwset, Vmin, Vmax, the ceiling, the load reference) in force.
 
-Deviations from PSS/E: the engine's transport delay Teng is not modelled (only Teng
-= 0 is read; ACTIVSg2000's 367 GGOV1 all have 0); DELT is the fixed 1/120 s above,
-not the run's step; the deadband is the continuous one; Rup and Rdown bound the
-load limiter integrator's rate (our reading of "maximum rate of load limit
-increase/decrease"). Rselect -1 is the requested stroke (the gate output) and -2 the
-valve stroke, as PSS/E's CON table says (OpenIPSL's and GridPACK's code swap them).
+Deviations from PSS/E: the limits moved at rest (above); the engine's transport
+delay Teng is not modelled (only Teng = 0 is read; ACTIVSg2000's 367 GGOV1 all
+have 0); DELT is the fixed 1/120 s above, not the run's step; the deadband is the
+continuous one; Rup and Rdown bound the load limiter integrator's rate (our reading
+of "maximum rate of load limit increase/decrease"). Rselect -1 is the requested
+stroke (the gate output) and -2 the valve stroke, as PSS/E's CON table says
+(OpenIPSL's and GridPACK's code swap them).
 """
 
 from __future__ import annotations
@@ -237,7 +242,7 @@ class GGOV1(AbstractController):
     def _f(self, x, meas, ref):
         w = meas["omega"]
         pe_t = meas["Pe"] * self._k()
-        pref, pmwset = ref[0], ref[1]
+        pref, pmwset, vmin, vmax, ceiling, ld = ref
         (pe_x, x_mw, x_d, x_i, fsr_d, x_w, stroke, x_tb, x_ts, texm, x_l) = x
         pe, d_pe = lag(pe_x, pe_t, 1.0, self.Tpelec)
         d_mw = nonwindup(x_mw, self.Kimw * (pmwset - pe), -1.1 * self.R, 1.1 * self.R)
@@ -264,10 +269,8 @@ class GGOV1(AbstractController):
         wf = stroke * self._speed_factor(w)
         y_ts, d_ts = leadlag(x_ts, wf * self._temp_factor(w), self.Tsa, self.Tsb)
         t_out, d_tf = lag(texm, y_ts, 1.0, self.Tfload)
-        fsrt = jnp.minimum(
-            x_l + self.Kpload * (self.Ldref / self.Kturb + self.Wfnl - t_out), 1.0
-        )
-        fsr = jnp.clip(jnp.minimum(jnp.minimum(fsrn, fsrt), fsra), self.Vmin, self.Vmax)
+        fsrt = jnp.minimum(x_l + self.Kpload * (ld - t_out), ceiling)
+        fsr = jnp.clip(jnp.minimum(jnp.minimum(fsrn, fsrt), fsra), vmin, vmax)
         kp_on = self.Kpgov > 0
         d_i = jnp.where(
             kp_on,
@@ -293,15 +296,13 @@ class GGOV1(AbstractController):
         wf0 = pt0 / self.Kturb + self.Wfnl
         s0 = wf0 / self._speed_factor(w)
         t0 = wf0 * self._temp_factor(w)
-        limit = self.Ldref / self.Kturb + self.Wfnl - t0
         require_at_rest(
-            (s0 >= self.Vmin) & (s0 <= self.Vmax) & (s0 <= 1.0) & (limit >= 0),
+            s0 > 0,
             "GGOV1",
             "Pm0",
             y0,
             "the operating point's valve stroke (Pm0 MBASE/Trate)/Kturb + Wfnl must "
-            "lie within [Vmin, Vmax], at most 1, and the load limiter must not be in "
-            "control (Ldref/Kturb + Wfnl >= the exhaust temperature at rest)",
+            "be > 0",
         )
         fb0 = jnp.select(
             [self.Rselect == 1, self.Rselect == -1, self.Rselect == -2],
@@ -324,7 +325,17 @@ class GGOV1(AbstractController):
                 s0,  # x_l
             ]
         )
-        ref = jnp.stack([w + self.R * fb0, pe_t])
+        # limits the operating point lies beyond move to it (the unit starts on them)
+        ref = jnp.stack(
+            [
+                w + self.R * fb0,  # Pref
+                pe_t,  # Pmwset
+                jnp.minimum(self.Vmin, s0),
+                jnp.maximum(self.Vmax, s0),
+                jnp.maximum(1.0, s0),  # the load limiter's ceiling
+                jnp.maximum(self.Ldref / self.Kturb + self.Wfnl, t0),  # its reference
+            ]
+        )
         return x0, ref
 
     def rhs(self, x, meas, ref):
