@@ -4,7 +4,10 @@ in <= 30 min on this 2-core CPU.
 
 One process: read the built-in case `activsg2000` (with `--skip-unsupported`
 until every exciter of its dyr file is in smibjax: the skipped exciters hold their
-field voltage), the sparse power flow (timed warm), the operating point, the largest
+field voltage), without the records of the three exciters whose data put the
+operating point beyond their limits (`BEYOND_LIMITS`; `--keep-beyond-limits` keeps
+them, and the machine at 6216 then slips at 1.5 s without any event), the sparse
+power flow (timed warm), the operating point, the largest
 derivative at t = 0; then a 10 s run with a 50 ms bolted bus fault from 1.0 s, saved
 every 10 ms (compile = the first call less the second; warm = the second, in CPU
 seconds and wall seconds); then a batch of `--batch` scenarios (the fault at as many
@@ -57,26 +60,46 @@ def _timed(out, key, f):
     return r
 
 
-def run(skip: bool, t_end: float, batch: int, rtol: float, atol: float) -> dict:
+# the exciters whose data put the operating point beyond their own limits
+# (cases/README.md, section 5): the ESDC2A at 6216 cannot hold Efd0 = 4.18 with VR <=
+# 1.17 and lets its machine slip out of step at 1.5 s without any event
+BEYOND_LIMITS = {("ESDC2A", "6216:1"), ("SCRX", "3105:1"), ("SCRX", "6266:1")}
+
+
+def run(
+    skip: bool, t_end: float, batch: int, rtol: float, atol: float, drop=()
+) -> dict:
     import jax
 
     jax.config.update("jax_enable_x64", True)
     import jax.numpy as jnp
 
-    from smibjax.grid.case import load_case
+    from smibjax.grid.case import BUILTIN_OPTIONS, build_case, case_files
     from smibjax.grid.events import BusFault
     from smibjax.grid.loop import evaluate
     from smibjax.grid.network import stage_configs, stage_matrices
     from smibjax.grid.operating import operating_point
     from smibjax.grid.powerflow import solve_power_flow
+    from smibjax.grid.psse import read_dyr, read_raw, to_system
     from smibjax.grid.simulate import simulate_batch, simulate_jit
 
     out: dict = {"load_before": _load(), "t_end": t_end, "rtol": rtol, "atol": atol}
+    out["dropped"] = sorted(f"{m} {b}" for m, b in drop) if drop else []
+
+    def read():
+        raw, dyr = case_files("activsg2000")
+        opts = BUILTIN_OPTIONS["activsg2000"]
+        system = to_system(read_raw(raw), var_limited=opts["var_limited"])
+        recs = [
+            r
+            for r in read_dyr(dyr, skip_unsupported=skip)
+            if (r.model, f"{r.bus}:{r.ident}") not in drop
+        ]
+        return build_case(system, recs, "activsg2000", unmodelled_as_load=True)
+
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        case = _timed(
-            out, "read", lambda: load_case("activsg2000", skip_unsupported=skip)
-        )
+        case = _timed(out, "read", read)
     out["warnings"] = [str(w.message) for w in caught]
     sys_ = case.system
     out |= dict(
@@ -106,7 +129,9 @@ def run(skip: bool, t_end: float, batch: int, rtol: float, atol: float) -> dict:
     out["max_derivative_at_rest"] = float(dy.max())
     out["states_off_rest_1e-8"] = int((dy > 1e-8).sum())
 
-    gen_bus = np.unique(np.asarray(case.layout.gen_bus))
+    gen_bus = np.unique(
+        np.asarray(case.layout.gen_bus)[np.concatenate(case.layout.machine_gen)]
+    )
     bus0 = int(gen_bus[0])
     ev = (BusFault(bus=bus0, t_on=T_FAULT, t_off=T_CLEAR),)
     opts = dict(t_end=t_end, dt_save=DT, rtol=rtol, atol=atol)
@@ -165,12 +190,20 @@ def main() -> None:
     ap.add_argument("--batch", type=int, default=8)
     ap.add_argument("--rtol", type=float, default=1e-6)
     ap.add_argument("--atol", type=float, default=1e-8)
+    ap.add_argument(
+        "--keep-beyond-limits",
+        action="store_true",
+        help="keep the three exciters the file puts beyond their limits",
+    )
     ap.add_argument("--tag", default="")
     ap.add_argument("--out", default=str(HERE / "results"))
     a = ap.parse_args()
-    res = run(a.skip_unsupported, a.t_end, a.batch, a.rtol, a.atol)
+    drop = () if a.keep_beyond_limits else BEYOND_LIMITS
+    res = run(a.skip_unsupported, a.t_end, a.batch, a.rtol, a.atol, drop)
     res["command"] = "python benchmarks/activsg2000.py " + " ".join(
-        f"--{k.replace('_', '-')} {v}" for k, v in vars(a).items() if k != "out"
+        f"--{k.replace('_', '-')}" + ("" if isinstance(v, bool) else f" {v}")
+        for k, v in vars(a).items()
+        if k != "out" and v not in (False, "")
     )
     path = Path(a.out) / f"activsg2000{'_' + a.tag if a.tag else ''}.json"
     path.parent.mkdir(parents=True, exist_ok=True)
