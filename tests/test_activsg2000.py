@@ -97,6 +97,7 @@ def test_unmodelled_generators_become_negative_loads_with_the_same_power_flow():
     # the raw file's q need not be the solution's: give it the solved q first
     solved = eqx.tree_at(lambda s: s.generators.q, system, pf0.q_gen)
     case = build_case(solved, recs, unmodelled_as_load=True)
+    assert np.asarray(solved.generators.status).tolist() == [1.0] * 4  # not mutated
     gens = case.system.generators
     assert np.asarray(gens.status).tolist() == [1.0, 1.0, 1.0, 0.0]
     ld = case.system.loads

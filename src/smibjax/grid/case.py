@@ -178,7 +178,7 @@ def _as_negative_loads(system, records):
         if r.model in MACHINES + SVCS and (int(r.bus), str(r.ident).strip()) in keys
     }
     gens = system.generators
-    status = np.asarray(gens.status, dtype=float)
+    status = np.array(gens.status, dtype=float)  # a copy: `system` stays as given
     ids = gens.ident or tuple("1" for _ in status)
     moved = [k for k in range(len(status)) if status[k] > 0 and k not in modelled]
     if not moved:
