@@ -182,6 +182,9 @@ def test_case_files_are_package_data():
             "npcc.raw",
             "wecc179.dyr",
             "wecc179.raw",
+            # ACTIVSg2000 (issues 45, 46)
+            "activsg2000.dyr",
+            "activsg2000.raw",
         ]
     )
     assert (CASES_DIR / "README.md").is_file()

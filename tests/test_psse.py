@@ -874,6 +874,8 @@ def test_dyr_order_against_andes_yaml():
         "IEESGO",
         "ST2CUT",
         "GAST",
+        # issue 45: ANDES reads GGOV1 into a TGOV1 (R only), in PSS/E's CON order
+        "GGOV1",
     ]
     # our name -> ANDES's, where they differ
     alias = {
@@ -898,6 +900,9 @@ def test_dyr_order_against_andes_yaml():
         names = {**names, "JBUS": "BUS2", "M": "ID2", "TW": "Tw", "ICS1": "MODE"}
         names |= {"IB1": "BUSR", "ICS2": "MODE2", "IB2": "BUSR2"}
         names |= {"Dturb": "Dt"} if m == "GAST" else {}
+        if m == "GGOV1":
+            names |= {"Flag": "Fswitch", "Kigov": "KIgov", "Vmax": "VMAX"}
+            names |= {"Vmin": "VMIN", "Kiload": "KIload", "Kimw": "KImw"}
         assert [names.get(n, n) for n in psse.DYR_MODELS[m]] == theirs, m
 
 

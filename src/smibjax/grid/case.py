@@ -13,6 +13,7 @@ machine.
 from __future__ import annotations
 
 from collections import defaultdict
+from dataclasses import replace
 from importlib import resources
 from pathlib import Path
 
@@ -39,7 +40,17 @@ BUILTIN = {
     "wecc179": ("wecc179.raw", "wecc179.dyr"),
     "npcc": ("npcc.raw", "npcc.dyr"),
     "nordic44": ("nordic44.raw", "nordic44.dyr"),
+    # issues 45, 46: Texas A&M's synthetic ACTIVSg2000 (ERCOT footprint) with its
+    # dynamics, from NREL-Sienna/PowerSystemsTestData (cases/README.md)
+    "activsg2000": ("activsg2000.raw", "activsg2000.dyr"),
 }
+
+# issue 46 (ACTIVSg2000): how built-in cases are read beyond the default. Its raw file
+# is PSS/E's solved case with generators at their reactive limits
+# (`to_system(..., var_limited=True)`: the power flow returns the file's own
+# voltages), and its dyr file has no dynamic data for 98 in-service generators (its
+# wind and solar plants): `build_case(..., unmodelled_as_load=True)`
+BUILTIN_OPTIONS = {"activsg2000": {"var_limited": True, "unmodelled_as_load": True}}
 
 MACHINES = ("GENCLS", "GENTRA", "GENROU")
 MACHINES += ("GENROE", "GENSAL", "GENSAE")  # issue 45
@@ -55,6 +66,7 @@ GOVERNORS = ("TGOV1",)
 # governors and stabilizers of issue 45
 STABILIZERS += ("ST2CUT", "STAB2A", "PSS2A", "PSS2B")
 GOVERNORS += ("IEEEG1", "HYGOV", "IEESGO", "GAST")
+GOVERNORS += ("GGOV1",)  # issue 45 (GGOV1)
 SVCS = ("CSVGN1",)
 SUPPORTED = MACHINES + EXCITERS + STABILIZERS + GOVERNORS + SVCS
 
@@ -92,6 +104,7 @@ def load_case(
     if dyr is None and str(name_or_raw) in BUILTIN:
         raw_path, dyr_path = case_files(str(name_or_raw))
         name = str(name_or_raw)
+        opts = BUILTIN_OPTIONS.get(name, {})
     else:
         if dyr is None:
             if not (str(name_or_raw).endswith(".raw") or Path(name_or_raw).is_file()):
@@ -99,9 +112,15 @@ def load_case(
             raise CaseError(f"{name_or_raw}: a raw file needs its dyr file (--dyr)")
         raw_path, dyr_path = Path(name_or_raw), Path(dyr)
         name = raw_path.stem
-    system = to_system(read_raw(raw_path))
+        opts = {}
+    system = to_system(read_raw(raw_path), var_limited=opts.get("var_limited", False))
     records = read_dyr(dyr_path, skip_unsupported=skip_unsupported)
-    return build_case(system, records, name=name)
+    return build_case(
+        system,
+        records,
+        name=name,
+        unmodelled_as_load=opts.get("unmodelled_as_load", False),
+    )
 
 
 def _gen_key_index(system):
@@ -149,8 +168,50 @@ def _located(cls, entries):
         raise
 
 
-def build_case(system, records, name: str = "") -> Case:
-    """A `Case` from a `System` and dyr records (`psse.read_dyr`)."""
+def _as_negative_loads(system, records):
+    """`system` with each in-service generator that has no machine record among
+    `records` (nor an SVC record) turned into a negative load at its bus (identifier
+    'G' + its machine id) and given status 0 (issue 46, ACTIVSg2000)."""
+    import equinox as eqx
+
+    keys = _gen_key_index(system)
+    modelled = {
+        keys[(int(r.bus), str(r.ident).strip())]
+        for r in records
+        if r.model in MACHINES + SVCS and (int(r.bus), str(r.ident).strip()) in keys
+    }
+    gens = system.generators
+    status = np.array(gens.status, dtype=float)  # a copy: `system` stays as given
+    ids = gens.ident or tuple("1" for _ in status)
+    moved = [k for k in range(len(status)) if status[k] > 0 and k not in modelled]
+    if not moved:
+        return system
+    ld = system.loads
+    gbus = np.asarray(gens.bus)[moved]
+    loads = type(ld)(
+        bus=np.concatenate([np.asarray(ld.bus), gbus]),
+        p=np.concatenate([np.asarray(ld.p), -np.asarray(gens.p)[moved]]),
+        q=np.concatenate([np.asarray(ld.q), -np.asarray(gens.q)[moved]]),
+        ident=tuple(ld.ident) + tuple(f"G{str(ids[k]).strip()}" for k in moved)
+        if ld.ident
+        else (),
+    )
+    status[moved] = 0.0
+    system = eqx.tree_at(lambda s: s.loads, system, loads)
+    return eqx.tree_at(lambda s: s.generators.status, system, status)
+
+
+def build_case(
+    system, records, name: str = "", *, unmodelled_as_load: bool = False
+) -> Case:
+    """A `Case` from a `System` and dyr records (`psse.read_dyr`). An in-service
+    generator without a machine record is refused, or, with `unmodelled_as_load`,
+    becomes a negative constant-power load -(p + j q) at its bus and is taken out of
+    service (PSS/E's GNET activity; `_as_negative_loads`): the power flow of a solved
+    raw file returns the same voltages (its p and q are the file's solution), and
+    the simulation holds it as a constant admittance, like every load."""
+    if unmodelled_as_load:
+        system = _as_negative_loads(system, records)
     keys = _gen_key_index(system)
     by_model = defaultdict(list)
     for r in records:
@@ -212,7 +273,13 @@ def build_case(system, records, name: str = "") -> Case:
                     f"{r.file}:{r.line}: {model} for generator {r.ident!r} at bus "
                     f"{r.bus} has no machine record"
                 )
-        controllers.append(_located(_model_class(model), entries))
+        cls = _model_class(model)
+        if getattr(cls, "needs_mbase", False):  # issue 45 (GGOV1): powers on Trate
+            entries = [
+                (g, replace(r, params={**r.params, "MBASE": float(mbase[g])}))
+                for g, r in entries
+            ]
+        controllers.append(_located(cls, entries))
     unknown = sorted(set(by_model) - set(SUPPORTED))
     if unknown:
         raise CaseError(

@@ -766,7 +766,7 @@ def _three_winding(r: dict, vb: tuple, sbase: float, where: str):
     return legs, _magnetizing(r, vb[0], sbase, where)
 
 
-def to_system(raw: RawData) -> System:
+def to_system(raw: RawData, *, var_limited: bool = False) -> System:
     """Convert `RawData` to a `System`: per unit on SBASE, angles in rad, bus positions
     for bus numbers. Conventions (docs/psse.md):
 
@@ -788,10 +788,19 @@ def to_system(raw: RawData) -> System:
       transformers: a star point bus (number: one above the largest bus number, in
       file order; type 1, or 4 when the transformer is out of service; VMSTAR,
       ANSTAR; base kV NOMV1 or bus I's) and three branches from the winding buses to
-      it (`_three_winding`), a winding out of service (STAT 2, 3, 4) as status 0.
+      it (`_three_winding`), a winding out of service (STAT 2, 3, 4) as status 0;
+    - `var_limited` (a raw file that holds PSS/E's solved case, as ACTIVSg2000's
+      does; issue 45): a generator bus (type 2) whose in-service generators all sit
+      at a reactive limit (QG = QT or QB, to 1e-3 Mvar) and whose voltage VM is not
+      their set point VS (by more than 1e-4 pu) is a PQ bus (type 1) holding their
+      QG: PSS/E's var-limited generator, so that the power flow returns the file's
+      own solution (`_var_limited`). Off by default: a raw file that is not a
+      solution (ANDES's IEEE 14 has QG = QT with VM far from VS) keeps its types.
     """
     sb = raw.sbase
     bus_rec = list(raw.buses)
+    if var_limited:
+        bus_rec = _var_limited(raw)
     star_numbers = {}
     top = max((b["I"] for b in raw.buses), default=0)
     by_number = {b["I"]: b for b in raw.buses}
@@ -949,6 +958,28 @@ def to_system(raw: RawData) -> System:
         name=" / ".join(t.strip() for t in raw.title if t.strip()),
     )
     return system
+
+
+def _var_limited(raw: RawData) -> list[dict]:
+    """The raw file's bus records, the generator buses at a reactive limit in the
+    file's solution turned into PQ buses (`to_system`'s `var_limited`)."""
+    gens: dict[int, list[dict]] = {}
+    for g in raw.generators:
+        if g["STAT"] != 0:
+            gens.setdefault(g["I"], []).append(g)
+    out = []
+    for b in raw.buses:
+        on = gens.get(b["I"], [])
+        limited = (
+            b["IDE"] == 2
+            and on
+            and all(
+                min(abs(g["QG"] - g["QT"]), abs(g["QG"] - g["QB"])) <= 1e-3 for g in on
+            )
+            and all(abs(b["VM"] - g["VS"]) > 1e-4 for g in on)
+        )
+        out.append({**b, "IDE": 1} if limited else b)
+    return out
 
 
 # ---------------------------------------------------------------------- dyr reader
@@ -1465,6 +1496,45 @@ DYR_MODELS: dict[str, tuple[str, ...]] = {
         "VSTMAX",
         "VSTMIN",
     ),
+    # issue 45 (GGOV1, devices/ggov1.py): PSS/E Model Library CON order, the ICONs
+    # Rselect and Flag first, as PSS/E writes them
+    "GGOV1": (
+        "Rselect",
+        "Flag",
+        "R",
+        "Tpelec",
+        "maxerr",
+        "minerr",
+        "Kpgov",
+        "Kigov",
+        "Kdgov",
+        "Tdgov",
+        "Vmax",
+        "Vmin",
+        "Tact",
+        "Kturb",
+        "Wfnl",
+        "Tb",
+        "Tc",
+        "Teng",
+        "Tfload",
+        "Kpload",
+        "Kiload",
+        "Ldref",
+        "Dm",
+        "Ropen",
+        "Rclose",
+        "Kimw",
+        "Aset",
+        "Ka",
+        "Ta",
+        "Trate",
+        "db",
+        "Tsa",
+        "Tsb",
+        "Rup",
+        "Rdown",
+    ),
 }
 """The dyr models read, each with its parameter names in the order of the dyr record
 (the PSS/E CON order; IEEEST's two ICONs, the input signal code ICS and the remote bus
@@ -1522,6 +1592,8 @@ DYR_KINDS: dict[str, str] = {
     "GAST": "governor",
     "PSS2A": "pss",
     "PSS2B": "pss",
+    # issue 45 (GGOV1)
+    "GGOV1": "governor",
 }
 """What each dyr model is to its generator: a machine (one per generator in service),
 or an exciter, a load compensator, a stabilizer (pss) or a governor (at most one

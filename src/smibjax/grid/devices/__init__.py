@@ -50,5 +50,8 @@ from .exac1 import EXAC1 as EXAC1
 from .exac2 import EXAC2 as EXAC2
 from .expic1 import EXPIC1 as EXPIC1
 
+# issue 45 (GGOV1)
+from .ggov1 import GGOV1 as GGOV1
+
 # issue 47: loads as current injectors
 from .zipload import ZIPLoad as ZIPLoad

@@ -61,7 +61,8 @@ class IEEET1(AbstractController):
         zero = 0.0 * self.TR
         try:
             return ESDC1A(
-                gen=self.gen,
+                # positions unused by init/rhs; jit traces self.gen (issue 46)
+                gen=np.zeros(np.shape(self.gen), dtype=np.int64),
                 TB=zero,
                 TC=zero,
                 TF1=self.TF,
