@@ -97,7 +97,8 @@ def test_the_grids_stored_run_is_the_librarys_run(stored):
     scaled, pf = scaled_power_flow(case)
     ev = (BusFault(bus=6, t_on=0.5, t_off=0.6),)
     opts = dict(t_end=1.5, dt_save=0.05)
-    tr, m = run_grid(scaled, pf, ev, 0.5, **opts)
+    tr, m, dy0 = run_grid(scaled, pf, ev, 0.5, **opts)
+    assert float(jnp.max(jnp.abs(dy0))) < 1e-8  # Kundur starts at rest
     assert _stored.LAST_PATH["grid.simulate"] in ("exported", "stored")
     op, _ = operating_point(case)
     ref = simulate_jit(case, op, ev, **opts)
@@ -115,7 +116,7 @@ def test_the_grids_stored_run_is_the_librarys_run(stored):
     # a later clearing time: the same program from disk, a larger swing
     _fresh()
     later = (BusFault(bus=6, t_on=0.5, t_off=0.65),)
-    tr2, _ = run_grid(scaled, pf, later, 0.5, **opts)
+    tr2, _, _ = run_grid(scaled, pf, later, 0.5, **opts)
     assert _stored.LAST_PATH["grid.simulate"] == "stored"
     swing = lambda t: float(jnp.max(jnp.abs(t.delta - t.delta[0])))  # noqa: E731
     assert swing(tr2) > swing(tr) + 1e-3

@@ -214,6 +214,7 @@ def _grid_program(case, vm, va, p_gen, q_gen, events, t_first, **options):
     (`grid_metrics`), as one flat dict ("traj.NAME", "metrics.NAME")."""
     from ..grid.loop import initialize
     from ..grid.metrics import grid_metrics
+    from ..grid.operating import rest_residual
     from ..grid.simulate import simulate_case
 
     op = initialize(case, vm, va, p_gen, q_gen)
@@ -221,7 +222,8 @@ def _grid_program(case, vm, va, p_gen, q_gen, events, t_first, **options):
     m = grid_metrics(case, tr, t_first)
     out = {f"traj.{k}": getattr(tr, k) for k in tr.__dataclass_fields__}
     fields = [k for k in m.__dataclass_fields__ if getattr(m, k) is not None]
-    return out | {f"metrics.{k}": getattr(m, k) for k in fields}
+    out |= {f"metrics.{k}": getattr(m, k) for k in fields}
+    return out | {"rest.dy0": rest_residual(case, op)}
 
 
 _GRID = None
@@ -229,7 +231,8 @@ _GRID = None
 
 def run_grid(case, pf, events, t_first: float, before_trace=None, **options):
     """`simulate --case`'s run from the power flow `pf` of `case` (already scaled):
-    (GridTrajectory, GridMetrics), from a stored program when one of this
+    (GridTrajectory, GridMetrics, dy/dt at the state at rest before the events
+    (`grid.operating.rest_residual`)), from a stored program when one of this
     structure exists (`smibjax._stored`); `before_trace()` is called first when the
     program must be traced (the phase line). Concrete events are checked first."""
     import jax.numpy as jnp
@@ -258,4 +261,5 @@ def run_grid(case, pf, events, t_first: float, before_trace=None, **options):
     part = lambda tag: {  # noqa: E731
         k.split(".", 1)[1]: v for k, v in out.items() if k.startswith(tag)
     }
-    return GridTrajectory(**part("traj.")), GridMetrics(**part("metrics."))
+    traj, metrics = GridTrajectory(**part("traj.")), GridMetrics(**part("metrics."))
+    return traj, metrics, out["rest.dy0"]

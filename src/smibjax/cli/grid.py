@@ -722,6 +722,27 @@ def coi_record(case, tr) -> np.ndarray:
     return np.where(tripped, np.nan, rel)
 
 
+def warn_not_at_rest(case, dy0, most: int = 8) -> None:
+    """One warning line per device that does not start at rest (its data put the
+    operating point beyond its own limits: PSS/E's suspect initial conditions), the
+    largest first, at most `most` and a count of the rest."""
+    from ..grid.operating import not_at_rest
+
+    rows = not_at_rest(case, dy0)
+    for model, where, state, v in rows[:most]:
+        print(
+            f"smibjax: warning: {model} at {where} does not start at rest "
+            f"(d{state}/dt = {v:.3g} at t = 0): its data or its controls' limits "
+            "put the operating point beyond a limit; the run starts from there",
+            file=sys.stderr,
+        )
+    if len(rows) > most:
+        print(
+            f"smibjax: warning: and {len(rows) - most} more devices not at rest",
+            file=sys.stderr,
+        )
+
+
 def run_simulate(args) -> int:
     """`simulate --case`: one run; summary, the trajectory (per-generator and per-bus
     arrays with their PSS/E ids) in the format of the --out suffix, the plot."""
@@ -746,7 +767,7 @@ def run_simulate(args) -> int:
     t0 = time.perf_counter()
     t_first = min(float(e.switches()[0]) for e in ev)
     # a second run of this structure calls the stored program: no trace, no diffrax
-    tr, m = run_grid(
+    tr, m, dy0 = run_grid(
         case,
         pf,
         ev,
@@ -757,6 +778,7 @@ def run_simulate(args) -> int:
         **_solver_kw(args),
     )
     wall = time.perf_counter() - t0
+    warn_not_at_rest(case, dy0)
     verdict = (
         "stable"
         if bool(tr.stable)

@@ -24,6 +24,8 @@ __all__ = [
     "operating_point_traced",
     "scaled_power_flow",
     "check_islanding",
+    "rest_residual",
+    "not_at_rest",
 ]
 
 
@@ -111,3 +113,32 @@ def _components(n, br, status):
             a, b = find(int(br.fr[k])), find(int(br.to[k]))
             parent[a] = b
     return [find(i) for i in range(n)]
+
+
+def rest_residual(case: Case, op: Operating):
+    """dy/dt at the operating point's state y0, in the network before any event
+    (one per state, `loop.state_labels` order; per second). Zero to rounding where
+    every device starts at rest; a device whose data put its operating point beyond
+    its own limits (an exciter that cannot deliver the field voltage the power flow
+    needs) is not at rest. Jittable."""
+    from .loop import evaluate
+    from .network import stage_configs, stage_matrices
+
+    cfgs = stage_configs(op.grid, ())
+    mats = stage_matrices(op.grid, cfgs, ())
+    return evaluate(case, op, mats, 0, op.y0)[0]
+
+
+def not_at_rest(case: Case, dy, tol: float = 1e-6) -> list[tuple[str, str, str, float]]:
+    """(model, generator or bus, state, dy/dt) of the largest |dy/dt| > `tol` of each
+    device that does not start at rest (`rest_residual`), largest first: what
+    PSS/E lists as suspect initial conditions."""
+    from .loop import state_labels
+
+    dy = np.asarray(dy)
+    worst: dict[tuple[str, str], tuple[str, float]] = {}
+    for (model, where, state), v in zip(state_labels(case), dy, strict=True):
+        if abs(v) > tol and abs(v) > abs(worst.get((model, where), ("", 0.0))[1]):
+            worst[(model, where)] = (state, float(v))
+    rows = [(m, w, st, v) for (m, w), (st, v) in worst.items()]
+    return sorted(rows, key=lambda r: -abs(r[3]))
