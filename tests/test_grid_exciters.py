@@ -443,10 +443,17 @@ def test_ieeet2_frequency_response_is_its_transfer_function():
     def m(vs):
         return {"Vt": jnp.ones(n), "Vs": vs}
 
-    x0, ref = dev.init(jnp.full(n, 2.0), m(jnp.zeros(n)))
-    A = jax.jacfwd(lambda x: dev.rhs(x, m(jnp.zeros(n)), ref))(x0)
-    B = jax.jacfwd(lambda u: dev.rhs(x0, m(u), ref))(jnp.zeros(n))
-    C = jax.jacfwd(lambda x: dev.out(x, m(jnp.zeros(n)), ref))(x0)
+    # one compiled program (op by op, each operation compiled its own): cold,
+    # 15.5 -> 9.5 CPU-s (2026-12-03)
+    @jax.jit
+    def linearized():
+        x0, ref = dev.init(jnp.full(n, 2.0), m(jnp.zeros(n)))
+        A = jax.jacfwd(lambda x: dev.rhs(x, m(jnp.zeros(n)), ref))(x0)
+        B = jax.jacfwd(lambda u: dev.rhs(x0, m(u), ref))(jnp.zeros(n))
+        C = jax.jacfwd(lambda x: dev.out(x, m(jnp.zeros(n)), ref))(x0)
+        return A, B, C
+
+    A, B, C = linearized()
     ns = len(dev.state_names)
     for k in range(n):
         Ak, Bk = np.asarray(A[:, k, :, k]), np.asarray(B[:, k, k])
