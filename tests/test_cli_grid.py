@@ -10,8 +10,15 @@ from smibjax.cli import main
 
 # The tests that run smib-gencls's batch program (3 scenarios per chunk, 2 s) run on
 # one worker: they share it in memory (cold, the output-root test took 14.3 s alone
-# and 4.7 s after the compare test, 2026-12-02 at load 8).
+# and 4.7 s after the compare test, 2026-12-02 at load 8). They all run at the
+# tolerances `TOL` (not the default ones): the cct test needs values other than the
+# defaults to see that the command passes them on, and at the same values its scan
+# and bisection programs are the compare test's (the solver's options are static:
+# other tolerances, other programs). The six tests cold in one process: 181 -> 149
+# CPU-s, the cct test 266 -> 2.5 s (2026-12-03 at load 19).
 CASE_BATCH = pytest.mark.xdist_group("case_batch")
+TOL = ["--rtol", "1e-7", "--atol", "1e-9"]
+TOL_KW = dict(rtol=1e-7, atol=1e-9)
 
 
 def test_simulate_a_case_writes_named_arrays_and_a_plot(tmp_path, capsys):
@@ -113,7 +120,7 @@ def test_compare_a_case_against_its_parameter_sets(tmp_path, capsys):
     argv = ["compare", "--case", "smib-gencls", "--variant", "heavy:GENCLS.H=12"]
     argv += ["--param", "GENCLS.D=1", "--n", "3", "--chunk", "3", "--t-end", "2"]
     argv += ["--fault-buses", "2", "--fault-times", "0.2:0.3"]
-    argv += ["--clear-after", "0.05:0.1", "--out", str(out)]
+    argv += ["--clear-after", "0.05:0.1", "--out", str(out), *TOL]
     assert main(argv) == 0
     data = json.loads((out / "compare.json").read_text())
     assert list(data["summary"]) == ["case", "param", "heavy"]
@@ -146,7 +153,7 @@ def test_compare_a_case_against_its_parameter_sets(tmp_path, capsys):
     pos = case.system.bus_index(2)
     for d, survives in ((cct["case"], True), (cct["case"] + 1e-3, False)):
         ev = BusFault(bus=jnp.asarray(pos), t_on=jnp.asarray(0.5), t_off=0.5 + d)
-        tr = simulate_jit(case, op, (ev,), t_end=2.0, dt_save=0.05)
+        tr = simulate_jit(case, op, (ev,), t_end=2.0, dt_save=0.05, **TOL_KW)
         assert bool(tr.stable) is survives, d
 
 
@@ -182,6 +189,7 @@ def test_montecarlo_on_a_case_writes_to_the_output_root_without_out(
     # n = 3 (one chunk of 3) and 2 s: the batch program of the compare test below
     argv = ["montecarlo", "--case", "smib-gencls", "--n", "3", "--t-end", "2"]
     argv += ["--fault-times", "0.2:0.3", "--clear-after", "0.05:0.1", "--seed", "2"]
+    argv += TOL
     assert main(argv) == 0
     (out,) = (tmp_path / "runs").glob("montecarlo-*")
     lines = (out / "scenarios.csv").read_text().strip().splitlines()
@@ -210,6 +218,7 @@ def test_montecarlo_on_a_case_rows_match_single_runs_and_not_the_chunk(tmp_path)
 
     common = ["montecarlo", "--case", "smib-gencls", "--n", "5", "--t-end", "2"]
     common += ["--fault-times", "0.2:0.3", "--clear-after", "0.1:1.2", "--seed", "4"]
+    common += TOL
     tables = []
     for chunk in ("3", "5"):
         out = tmp_path / f"c{chunk}"
@@ -230,7 +239,7 @@ def test_montecarlo_on_a_case_rows_match_single_runs_and_not_the_chunk(tmp_path)
         one = type(ev)(
             bus=int(ev.bus[i]), t_on=float(ev.t_on[i]), t_off=float(ev.t_off[i])
         )
-        tr = simulate_jit(case, op, (one,), t_end=2.0)
+        tr = simulate_jit(case, op, (one,), t_end=2.0, **TOL_KW)
         m = grid_metrics(case, tr, jnp.asarray(float(ev.t_on[i])))
         stable.append(bool(m.stable))
         for row in (a[i], b[i]):
@@ -246,6 +255,7 @@ def test_montecarlo_on_a_case_rows_match_single_runs_and_not_the_chunk(tmp_path)
     assert any(stable) and not all(stable)
 
 
+@CASE_BATCH
 def test_cct_on_a_case_uses_the_commands_tolerances(tmp_path, monkeypatch, capsys):
     """`cct --case` ran its bisection at the library's default tolerances whatever
     --rtol/--atol said (compare --case passed them); both now go through one helper.
@@ -262,7 +272,7 @@ def test_cct_on_a_case_uses_the_commands_tolerances(tmp_path, monkeypatch, capsy
     monkeypatch.setattr(grid_cct, "critical_clearing_times_grid", spy)
     out = tmp_path / "cct"  # issue 50: written as cct.json (was: no extension)
     argv = ["cct", "--case", "smib-gencls", "--fault-buses", "2", "--t-end", "2"]
-    argv += ["--rtol", "1e-7", "--atol", "1e-9", "--tol", "0.01", "--out", str(out)]
+    argv += [*TOL, "--tol", "0.01", "--out", str(out)]
     assert main(argv) == 0
     assert [(k["rtol"], k["atol"], k["tol"]) for k in seen] == [(1e-7, 1e-9, 0.01)]
     assert not out.exists()
@@ -493,9 +503,9 @@ def test_input_files_that_were_tracebacks_are_one_line(tmp_path, capsys):
 
 
 # the grid Monte Carlo of the tests below: 6 scenarios in chunks of 3 at 2 s (the
-# batch program of the tests above)
+# batch program of the tests above, at their tolerances)
 _MC = ["montecarlo", "--case", "smib-gencls", "--n", "6", "--chunk", "3"]
-_MC += ["--t-end", "2", "--fault-times", "0.2:0.3", "--clear-after", "0.1:1.2"]
+_MC += ["--t-end", "2", "--fault-times", "0.2:0.3", "--clear-after", "0.1:1.2", *TOL]
 
 _KILLED = """
 import os, signal, sys
