@@ -259,10 +259,13 @@ def _andes_scenario(arg):
 
 
 def smib_setup(raw: str, dyr: str):
-    from smibjax.grid.case import load_case
+    """The case in ANDES's swing equation (`andes_swing`: no speed factor on
+    GENROU/GENSAL's mechanical power; PSS/E's, smibjax's default, has one), so that
+    the two programs run the same equations."""
+    from smibjax.grid.case import andes_swing, load_case
     from smibjax.grid.operating import operating_point
 
-    case = load_case(raw, dyr)
+    case = andes_swing(load_case(raw, dyr))
     op, _ = operating_point(case)
     return case, op
 

@@ -266,6 +266,7 @@ def _ref_machine(**over):
         S10=[g["S10"]],
         S12=[g["S12"]],
         f_base=REF.F_BASE,
+        speed_factor=False,  # ANDES's swing equation (PSS/E's has the speed factor)
     )
     kw.update(over)
     return GENROU(**kw)
@@ -627,15 +628,21 @@ def _openipsl_rhs(model, p, se, efd, pm, fault):
         i_d, i_q = np.linalg.solve(a, rhs)
         psi_d, psi_q = psippd - xpp * i_d, -psippq - xpp * i_q
         te = psi_d * i_q - psi_q * i_d
-        d_w = (pm - te - p["D"] * w) / (2 * p["H"])
+        # OpenIPSL's PSSE baseMachine: the mechanical torque at the rotor's speed
+        d_w = ((pm - p["D"] * w) / (1.0 + w) - te) / (2 * p["H"])
         d_kd = (epq - psikd - (p["xdp"] - xl) * i_d) / p["Tdopp"]
         if salient:
             xad = (
                 k1d * (epq - psikd - (p["xdp"] - xl) * i_d) + (p["xd"] - p["xdp"]) * i_d
             )
-            xad += (se(epq, p["S10"], p["S12"]) + 1) * epq
-            d_ppq = (-psippq + (p["xq"] - xpp) * i_q) / p["Tqopp"]
-            return [WB * w, d_w, (efd - xad) / p["Tdop"], d_kd, d_ppq]
+            d_ppq = -psippq + (p["xq"] - xpp) * i_q
+            if model == "GENSAL":  # Se(E'q) E'q, the d axis only
+                xad += (se(epq, p["S10"], p["S12"]) + 1) * epq
+            else:  # GENSAE: Se(|psi''|) on both axes, as GENROE
+                s = se(np.hypot(psippd, psippq), p["S10"], p["S12"])
+                xad += epq + s * psippd
+                d_ppq -= psippq * (p["xq"] - xl) / (p["xd"] - xl) * s
+            return [WB * w, d_w, (efd - xad) / p["Tdop"], d_kd, d_ppq / p["Tqopp"]]
         s = se(np.hypot(psippd, psippq), p["S10"], p["S12"])
         k1q = (p["xqp"] - xpp) * (p["xq"] - p["xqp"]) / (p["xqp"] - xl) ** 2
         xad = k1d * (epq - psikd - (p["xdp"] - xl) * i_d) + epq
@@ -674,6 +681,7 @@ def _three_models():
     ref = _ref_machine()
     rou = {f.name: getattr(ref, f.name) for f in dataclasses.fields(GENROU)}
     rou.pop("saturation")
+    rou.pop("speed_factor")  # PSS/E's (the default), as OpenIPSL's equations
     return {
         "GENSAL": _salient_machine(GENSAL),
         "GENSAE": _salient_machine(GENSAE),
@@ -706,7 +714,7 @@ def test_machine_follows_an_independent_integration_of_psse_equations(model):
     ts = np.linspace(0.0, 2.0, N_SAVE)
     ref = _openipsl_run(model, p, se, y0, efd, pm, ts)
     ys = np.asarray(_simulate(m, jnp.asarray(ts), jnp.asarray(2.0)))[:, :, 0]
-    assert np.ptp(ref[:, 0]) > 0.2  # the fault moves the rotor
+    assert np.ptp(ref[:, 0]) > 0.15  # the fault moves the rotor (0.197 rad GENSAL)
     err = np.max(np.abs(ys - ref), axis=0)
     assert err[0] < 1e-8 and err[1] < 1e-9 and np.all(err[2:] < 1e-8), err
 

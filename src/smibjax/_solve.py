@@ -15,14 +15,33 @@ from __future__ import annotations
 from collections.abc import Callable
 
 import diffrax as dfx
+import equinox as eqx
+import jax.numpy as jnp
+import optimistix as optx
 from jaxtyping import Array, Float
 
 from ._options import SolverOptions
 from ._stepping import RigidSteps
 
-__all__ = ["adaptive_solve", "METHOD_CLASSES"]
+__all__ = ["adaptive_solve", "METHOD_CLASSES", "NanAsInf"]
 
 METHOD_CLASSES = {"tsit5": dfx.Tsit5, "dopri5": dfx.Dopri5, "dopri8": dfx.Dopri8}
+
+
+class NanAsInf(eqx.Module):
+    """The error norm `norm`, with NaN read as inf: a trial step whose error is NaN
+    (an explicit step far too long for a stiff stage, right after a switch, that
+    overflows: GENROE's exponential saturation psi^n of a state of 1e37) is then
+    rejected and the next one shortened by the controller's smallest factor, as for
+    an infinite error. diffrax's PID controller takes a NaN error into the next step
+    length (NaN times the step), so that every later step is rejected until the step
+    budget runs out. Identical to `norm` wherever the error is a number."""
+
+    norm: Callable
+
+    def __call__(self, y) -> Array:
+        n = self.norm(y)
+        return jnp.where(jnp.isnan(n), jnp.inf, n)
 
 
 def adaptive_solve(
@@ -43,14 +62,12 @@ def adaptive_solve(
     reached come the final state, at `ts[-1]` or where `stop` fired, then inf padding).
 
     `jumps` (s): switch times the steps end on (None or empty: none). `norm`: the
-    error norm of the step-size control (default diffrax's RMS norm). `dt0` (s): the
-    first step (None: diffrax's estimate)."""
-    pid = (
-        dfx.PIDController(rtol=float(solver.rtol), atol=float(solver.atol))
-        if norm is None
-        else dfx.PIDController(
-            rtol=float(solver.rtol), atol=float(solver.atol), norm=norm
-        )
+    error norm of the step-size control (default diffrax's RMS norm), NaN read as
+    inf (`NanAsInf`). `dt0` (s): the first step (None: diffrax's estimate)."""
+    pid = dfx.PIDController(
+        rtol=float(solver.rtol),
+        atol=float(solver.atol),
+        norm=NanAsInf(optx.rms_norm if norm is None else norm),
     )
     has_jumps = jumps is not None and jumps.shape[0] > 0
     controller = dfx.ClipStepSizeController(

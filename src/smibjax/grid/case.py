@@ -22,7 +22,14 @@ import numpy as np
 from .._errors import ParameterError
 from .loop import Case
 
-__all__ = ["BUILTIN", "load_case", "build_case", "case_files", "SUPPORTED"]
+__all__ = [
+    "BUILTIN",
+    "load_case",
+    "build_case",
+    "case_files",
+    "SUPPORTED",
+    "andes_swing",
+]
 
 # name -> (raw file, dyr file) in smibjax/grid/cases/
 BUILTIN = {
@@ -301,3 +308,18 @@ def build_case(
         sources=tuple(sorted(sources)),
         name=name,
     )
+
+
+def andes_swing(case: Case) -> Case:
+    """`case` with ANDES's swing equation, 2 H d omega/dt = Pm - Te - D omega, on
+    every machine group that has PSS/E's, (Pm - D omega)/(1 + omega) - Te (GENROU,
+    GENROE, GENSAL, GENSAE: their `speed_factor`; `devices._dq.swing`): for
+    comparisons with ANDES 2.0, which has no speed factor. PSS/E's own results follow
+    the speed factor (docs/validation-psse.md)."""
+    import dataclasses
+
+    machines = tuple(
+        dataclasses.replace(m, speed_factor=False) if hasattr(m, "speed_factor") else m
+        for m in case.machines
+    )
+    return dataclasses.replace(case, machines=machines)

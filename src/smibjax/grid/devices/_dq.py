@@ -24,9 +24,17 @@ def from_dq(d, q, delta):
     return -1j * jnp.exp(1j * delta) * (d + 1j * q)
 
 
-def swing(omega, te, pm, h, d, f_base):
-    """(d delta/dt, d omega/dt) of the swing equation d delta/dt = omega_b omega,
-    2 H d omega/dt = Pm - Te - D omega (omega the per-unit speed deviation, Pm and Te
-    in pu on the machine base, omega_b = 2 pi f_base rad/s; no speed factor on the
-    torques, as ANDES)."""
-    return 2 * np.pi * f_base * omega, (pm - te - d * omega) / (2 * h)
+def swing(omega, te, pm, h, d, f_base, speed_factor: bool = False):
+    """(d delta/dt, d omega/dt) of the swing equation d delta/dt = omega_b omega and
+
+        2 H d omega/dt = (Pm - D omega) / (1 + omega) - Te   (speed_factor True)
+        2 H d omega/dt = Pm - Te - D omega                    (speed_factor False)
+
+    (omega the per-unit speed deviation, Pm and Te in pu on the machine base,
+    omega_b = 2 pi f_base rad/s). With `speed_factor`, PSS/E's: the turbine's power
+    becomes a torque at the rotor's speed, Tm = (Pm - D omega)/(1 + omega), against
+    the air-gap torque Te (GENROU, GENROE, GENSAL, GENSAE; OpenIPSL's PSSE machines
+    write the same; checked against PSS/E's own results, docs/validation-psse.md).
+    Without it, ANDES's (GENCLS, GENTRA: the SMIB's closed form)."""
+    tm = (pm - d * omega) / (1.0 + omega) if speed_factor else pm - d * omega
+    return 2 * np.pi * f_base * omega, (tm - te) / (2 * h)

@@ -35,12 +35,16 @@ psiq = -X''q Iq - psi2q = -(vd + Ra Id), i.e. in the rotor frame (`_dq`)
 
 which is the Norton source of the network interface: E'' = psi2q + j psi2d, rotated
 into the network frame by delta, behind Ra + j X''. Electrical torque
-Te = psid Iq - psiq Id = psi2q Id + psi2d Iq (= Pe + Ra |I|^2), and the swing equation
-is GENCLS's: d delta/dt = omega_b omega, 2 H d omega/dt = Pm - Te - D omega (omega the
-per-unit speed deviation; ANDES writes omega - 1 for it and M = 2H).
+Te = psid Iq - psiq Id = psi2q Id + psi2d Iq (= Pe + Ra |I|^2), and PSS/E's swing
+equation: d delta/dt = omega_b omega, 2 H d omega/dt = (Pm - D omega)/(1 + omega) - Te
+(omega the per-unit speed deviation; `_dq.swing` with its speed factor: the turbine's
+power Pm is a torque Pm/(1 + omega) at the rotor's speed).
 
-Differences from ANDES: none in the equations (S10 = 0 is no saturation in both,
-PSS/E's convention). `saturation="exponential"` (Se = S10 psi^n) is PSS/E's GENROE
+Differences from ANDES: ANDES's swing equation has no speed factor, 2 H d omega/dt =
+Pm - Te - D omega (omega - 1 in its notation, M = 2H); PSS/E's own results for this
+model follow the speed factor (a line trip: 7.9e-4 rad from PSS/E without it, 6.5e-5
+with it; docs/validation-psse.md). S10 = 0 is no saturation in both (PSS/E's
+convention). `saturation="exponential"` (Se = S10 psi^n) is PSS/E's GENROE
 (`GENROE`: this class with that fit). X''q is not a separate dyr parameter (PSS/E's
 GENROU takes X''d for both); a different `xqpp` is refused with one line.
 
@@ -86,6 +90,9 @@ class GENROU(AbstractMachine):
     xqpp: np.ndarray | None = eqx.field(default=None)
     saturation: str = eqx.field(static=True, default="quadratic")  # Se's fit
     f_base: float = eqx.field(static=True, default=60.0)  # frequency (Hz)
+    # PSS/E's swing equation, Tm = (Pm - D omega)/(1 + omega) (`_dq.swing`); False:
+    # ANDES's, Tm = Pm - D omega (for comparisons with ANDES)
+    speed_factor: bool = eqx.field(static=True, default=True)
 
     @classmethod
     def from_params(cls, gen, params, *, mbase, zsource, f_base=60.0):
@@ -222,7 +229,9 @@ class GENROU(AbstractMachine):
         xaq_i1q = e1d + (self.xq - self.xqp) * (gq2 * e1d - gq2 * e2q - gq1 * i_q)
         xaq_i1q = xaq_i1q + gqd * se * psi2q
         te = psi2q * i_d + psi2d * i_q
-        d_delta, d_omega = swing(omega, te, cmd["Pm"], self.H, self.D, self.f_base)
+        d_delta, d_omega = swing(
+            omega, te, cmd["Pm"], self.H, self.D, self.f_base, self.speed_factor
+        )
         return jnp.stack(
             [
                 d_delta,

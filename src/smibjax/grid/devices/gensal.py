@@ -23,7 +23,8 @@ SalientPoleQuadratic write the same equations)
 term Se(e1q) e1q only: the quadratic fit for GENSAL, the exponential one for GENSAE
 (`gensae.py`, `saturation.py`). The stator, the network interface (E'' = e2q + j psi2d
 of the rotor frame behind Ra + j X''d), the torque Te = e2q Id + psi2d Iq and the
-swing equation are GENROU's, with no speed factor (docs/machines.md).
+swing equation are GENROU's (PSS/E's speed factor on the mechanical power,
+docs/machines.md).
 
 Limit: with Se = 0, GENROU with X'q = X''d and T'qo = GENSAL's T''qo is this model
 (GENROU's e1d is then GENSAL's e2q, and GENROU's q-axis damper e2q drops out of the
@@ -68,6 +69,9 @@ class GENSAL(AbstractMachine):
     S12: np.ndarray = eqx.field(converter=f64, default=0.0)  # Se(1.2)
     saturation: str = eqx.field(static=True, default="quadratic")  # Se's fit
     f_base: float = eqx.field(static=True, default=60.0)  # frequency (Hz)
+    # PSS/E's swing equation, Tm = (Pm - D omega)/(1 + omega) (`_dq.swing`); False:
+    # ANDES's, Tm = Pm - D omega (for comparisons with ANDES)
+    speed_factor: bool = eqx.field(static=True, default=True)
 
     @classmethod
     def from_params(cls, gen, params, *, mbase, zsource, f_base=60.0):
@@ -156,7 +160,15 @@ class GENSAL(AbstractMachine):
         e1q, e2d = x[2], x[3]
         gd1, gd2 = self._gammas()
         xad_ifd = e1q + (self.xd - self.xdp) * (gd1 * i_d - gd2 * e2d + gd2 * e1q)
-        return xad_ifd + self._se(e1q) * e1q
+        return xad_ifd + self._sat_d(x)
+
+    def _sat_d(self, x):
+        """The d-axis saturation term of XadIfd: Se(e1q) e1q (GENSAL)."""
+        return self._se(x[2]) * x[2]
+
+    def _sat_q(self, x):
+        """The saturation term of T''qo d e2q/dt: none (GENSAL)."""
+        return jnp.zeros_like(x[4])
 
     def measure(self, x, v, held, s_base):
         e = self._emf(x)
@@ -181,14 +193,16 @@ class GENSAL(AbstractMachine):
         i = (e - v) / self._z()
         i_d, i_q = to_dq(i, delta)
         te = psi2q * i_d + psi2d * i_q
-        d_delta, d_omega = swing(omega, te, cmd["Pm"], self.H, self.D, self.f_base)
+        d_delta, d_omega = swing(
+            omega, te, cmd["Pm"], self.H, self.D, self.f_base, self.speed_factor
+        )
         return jnp.stack(
             [
                 d_delta,
                 d_omega,
                 (cmd["Efd"] - self._xad_ifd(x, i_d)) / self.Tdop,
                 (-e2d + e1q - (self.xdp - self.xl) * i_d) / self.Tdopp,
-                (-e2q + (self.xq - self.xdpp) * i_q) / self.Tqopp,
+                (-e2q + (self.xq - self.xdpp) * i_q + self._sat_q(x)) / self.Tqopp,
             ]
         )
 

@@ -15,6 +15,12 @@ Two fits:
 
       Se(psi) = S10 psi^n,  n = ln(S12 / S10) / ln(1.2).
 
+The exponential fit reads a flux above `PSI_MAX` (10 pu; a machine's data end at
+1.2 pu) as `PSI_MAX`: an explicit solver's trial step far outside the physical range
+(states of 1e30 after a switch, rejected by the error control) then cannot overflow
+psi^n (n up to about 20) into inf, whose inf - inf is a NaN that poisons the step
+control and the gradients of the whole run.
+
 S10 = 0 is no saturation at all in both fits, whatever S12 (PSS/E's convention; also
 ANDES's `ExcQuadSat` and OpenIPSL's `SE`). With S10 > 0 the quadratic fit needs
 S10 < 1.2 S12 (else the parabola through the two points opens on the wrong side) and
@@ -37,6 +43,7 @@ __all__ = [
 ]
 
 SATURATION_KINDS = ("quadratic", "exponential")
+PSI_MAX = 10.0  # pu: the exponential fit's flux is read as at most this
 
 
 def quadratic_fit(s10, s12):
@@ -75,7 +82,7 @@ def saturation_factor(psi, s10, s12, kind: str = "quadratic"):
         return jnp.where(on, big_b * (safe - big_a) ** 2 / safe, 0.0)
     if kind == "exponential":
         k, n = exponential_fit(s10, s12)
-        safe = jnp.where(psi > 0, psi, 1.0)
+        safe = jnp.where(psi > 0, jnp.minimum(psi, PSI_MAX), 1.0)
         return jnp.where(psi > 0, k * safe**n, 0.0)
     raise ParameterError(
         f"saturation = {kind!r} is not allowed: must be one of {SATURATION_KINDS}"
