@@ -349,3 +349,13 @@ def test_against_andes_zip_loads():
     keep[[100, 101, 110, 111]] = False  # the samples at and after the switches
     v_err = np.abs(np.asarray(tr.v_bus) - ref["v"][:, cols])[keep].max()
     assert v_err < 1e-4, v_err
+
+
+def test_case_options_without_a_case_are_refused(tmp_path, capsys):
+    from smibjax.cli import main
+
+    out = tmp_path / "x.npz"
+    assert main(["simulate", "--load-model", "power", "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert "--load-model is not allowed without --case" in err[-1]
+    assert not out.exists()

@@ -103,6 +103,14 @@ def precheck_case(args) -> None:
     names)."""
     case, dyr = getattr(args, "case", None), getattr(args, "dyr", None)
     if not case:
+        from .._commandline import given
+
+        for flag in ("--load-model", "--step", "--load-step", "--trip-load"):
+            if given(args, flag):  # issue 47's options of a case
+                raise CLIError(
+                    f"{flag} is not allowed without --case: the paper's SMIB has no "
+                    "PSS/E loads, exciter or governor references"
+                )
         return
     p = Path(case)
     if not dyr and (p.suffix.lower() == ".raw" or p.is_file()):
