@@ -866,6 +866,10 @@ def test_dyr_order_against_andes_yaml():
         "IEESGO",
         "ST2CUT",
         "GAST",
+        # issue 47: inverter-based resources
+        "REGCA1",
+        "REECB1",
+        "REPCA1",
     ]
     # our name -> ANDES's, where they differ
     alias = {
@@ -881,6 +885,20 @@ def test_dyr_order_against_andes_yaml():
         names = {**names, "JBUS": "BUS2", "M": "ID2", "TW": "Tw", "ICS1": "MODE"}
         names |= {"IB1": "BUSR", "ICS2": "MODE2", "IB2": "BUSR2"}
         names |= {"Dturb": "Dt"} if m == "GAST" else {}
+        # issue 47: inverter-based resources
+        names |= {"LVPLSW": "Lvplsw"} if m == "REGCA1" else {}
+        if m in ("REECB1", "REPCA1"):
+            names = {"Qmax": "QMax", "Qmin": "QMin", "Vmax": "VMAX", "Vmin": "VMIN"}
+            names |= {"Pmax": "PMAX", "Pmin": "PMIN", "IREG": "BUSR"}
+            names |= {"BRCH_FROM": "BUS1", "BRCH_TO": "BUS2", "CKT": "CKTID"}
+            names |= {"Tlag": "Tg"}
+            if m == "REPCA1":  # ANDES keeps REPCA1's limits in PSS/E's case
+                names |= {
+                    "Qmax": "Qmax",
+                    "Qmin": "Qmin",
+                    "Pmax": "Pmax",
+                    "Pmin": "Pmin",
+                }
         assert [names.get(n, n) for n in psse.DYR_MODELS[m]] == theirs, m
 
 

@@ -1,6 +1,6 @@
 """REECB1: the electrical control of a photovoltaic plant (PSS/E `REECB1`, WECC
 `REEC_B`; ICONs BUSR, PFFLAG, VFLAG, QFLAG, PQFLAG, CONs Vdip, Vup, Trv, dbd1, dbd2,
-Kqv, Iqhl, Iqll, Vref0, Tp, Qmax, Qmin, Vmax, Vmin, Kqp, Kqi, Kvp, Kvi, Tiq, dPmax,
+Kqv, Iqh1, Iql1, Vref0, Tp, Qmax, Qmin, Vmax, Vmin, Kqp, Kqi, Kvp, Kvi, Tiq, dPmax,
 dPmin, Pmax, Pmin, Imax, Tpord). It turns the plant controller's (or the operating
 point's) active power reference Pref and reactive command Qext into the current
 commands Ipcmd, Iqcmd of its converter (`regca1`). All on the machine base.
@@ -14,7 +14,7 @@ commands Ipcmd, Iqcmd of its converter (`regca1`). All on the machine base.
     Vsel   = VFLAG ? (Q PI output) : clip(Vref0, Vmin, Vmax)
     xV:    PI Kvp + Kvi/s on Vsel - Vt_filt, non-windup [-Iqmax, Iqmax]  (QFLAG = 1)
     xIq:   Tiq dxIq/dt = Q / max(Vt_filt, 0.01) - xIq                   (QFLAG = 0)
-    Iqinj  = clip(Kqv deadband(Vref0 - Vt_filt, dbd1, dbd2), Iqll, Iqhl)
+    Iqinj  = clip(Kqv deadband(Vref0 - Vt_filt, dbd1, dbd2), Iql1, Iqh1)
     Iqcmd  = clip((QFLAG ? V PI output : xIq) + Iqinj, -Iqmax, Iqmax)
     Pord:  Tpord dPord/dt = Pref - Pord, rate within [dPmin, dPmax] pu/s,
            non-windup [Pmin, Pmax]
@@ -68,8 +68,8 @@ class REECB1(eqx.Module):
     dbd1: np.ndarray = eqx.field(converter=f64)  # voltage error deadband (pu)
     dbd2: np.ndarray = eqx.field(converter=f64)
     Kqv: np.ndarray = eqx.field(converter=f64)  # reactive injection gain (pu/pu)
-    Iqhl: np.ndarray = eqx.field(converter=f64)  # Iqinj limits (pu)
-    Iqll: np.ndarray = eqx.field(converter=f64)
+    Iqh1: np.ndarray = eqx.field(converter=f64)  # Iqinj limits (pu)
+    Iql1: np.ndarray = eqx.field(converter=f64)
     Vref0: np.ndarray = eqx.field(converter=f64)  # voltage reference (0: V0)
     Tp: np.ndarray = eqx.field(converter=f64)  # electrical power filter (s)
     Qmax: np.ndarray = eqx.field(converter=f64)  # reactive command limits (pu)
@@ -106,7 +106,7 @@ class REECB1(eqx.Module):
                 ("Qmax", lambda o: v(o, "Qmax") >= v(o, "Qmin"), "must be >= Qmin"),
                 ("Vmax", lambda o: v(o, "Vmax") >= v(o, "Vmin"), "must be >= Vmin"),
                 ("Pmax", lambda o: v(o, "Pmax") >= v(o, "Pmin"), "must be >= Pmin"),
-                ("Iqhl", lambda o: v(o, "Iqhl") >= v(o, "Iqll"), "must be >= Iqll"),
+                ("Iqh1", lambda o: v(o, "Iqh1") >= v(o, "Iql1"), "must be >= Iql1"),
                 ("dbd2", lambda o: v(o, "dbd2") >= v(o, "dbd1"), "must be >= dbd1"),
                 ("dPmax", lambda o: v(o, "dPmax") > v(o, "dPmin"), "must be > dPmin"),
             ],
@@ -130,7 +130,7 @@ class REECB1(eqx.Module):
         q = jnp.clip(qsrc, self.Qmin, self.Qmax)
         vref0 = ref["Vref0"]
         iqinj = jnp.clip(
-            self.Kqv * deadband(vref0 - vf, self.dbd1, self.dbd2), self.Iqll, self.Iqhl
+            self.Kqv * deadband(vref0 - vf, self.dbd1, self.dbd2), self.Iql1, self.Iqh1
         )
         # power order
         tp = self.Tpord > 0
@@ -170,7 +170,7 @@ class REECB1(eqx.Module):
         and the converter's commands at rest."""
         vref0 = jnp.where(self.Vref0 == 0, vm, self.Vref0)
         iqinj0 = jnp.clip(
-            self.Kqv * deadband(vref0 - vm, self.dbd1, self.dbd2), self.Iqll, self.Iqhl
+            self.Kqv * deadband(vref0 - vm, self.dbd1, self.dbd2), self.Iql1, self.Iqh1
         )
         xiq = iqcmd0 - iqinj0
         qfl = self.QFLAG > 0.5

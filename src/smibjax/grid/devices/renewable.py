@@ -42,8 +42,8 @@ __all__ = ["Renewable", "REECB1_NEUTRAL", "REPCA1_NEUTRAL"]
 REECB1_NEUTRAL = {n: 0.0 for n in REECB1.con_names} | {
     "Vdip": -99.0,
     "Vup": 99.0,
-    "Iqhl": 1.0,
-    "Iqll": -1.0,
+    "Iqh1": 1.0,
+    "Iql1": -1.0,
     "Qmax": 99.0,
     "Qmin": -99.0,
     "Vmax": 99.0,
