@@ -1,0 +1,165 @@
+"""Inverter-based resources (issue 47): REGCA1 + REECB1 + REPCA1 as one current
+injector per plant (`smibjax.grid.devices.renewable`), read from PSS/E dyr records.
+
+Device level (no network): the operating point is an exact equilibrium for every
+flag set of PSS/E's RENA test files, the injected power is the power flow's, and the
+converter's low-voltage logic and current limits have their closed forms.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from smibjax._errors import ParameterError
+from smibjax.grid.devices.renewable import Renewable
+from smibjax.grid.psse import read_dyr
+
+RENA = Path(__file__).parent / "data" / "psse" / "RENA"
+FLAGS = (
+    "DEFAULT_FLAG",
+    "NOFREQFLAG_with_REF_FLAG",
+    "NOFREQFLAG_with_REF_FLAG_Q_FLAG",
+)
+V0 = jnp.array([1.015 * np.exp(1j * np.deg2rad(1.1006))])
+S0 = jnp.array([0.4 + 0.09952j])  # pu on 100 MVA: RENA's plant
+
+
+def _records(flags: str) -> dict:
+    return {r.model: r.params for r in read_dyr(RENA / f"ThreeBus_REN_A_{flags}.dyr")}
+
+
+def _plant(flags="DEFAULT_FLAG", reec=True, repc=True, **changes):
+    by = _records(flags)
+    for key, val in changes.items():
+        model, name = key.split("__")
+        by[model] = dict(by[model], **{name: val})
+    return Renewable.from_params(
+        gen=[1],
+        bus=[2],
+        mbase=[100.0],
+        regc=[by["REGCA1"]],
+        reec=[by["REECB1"] if reec else None],
+        repc=[by["REPCA1"] if repc else None],
+    )
+
+
+def test_the_dyr_records_are_read_with_their_icons():
+    by = _records("NOFREQFLAG_with_REF_FLAG_Q_FLAG")
+    assert by["REGCA1"]["LVPLSW"] == 0 and by["REGCA1"]["Tg"] == 0.02
+    assert by["REGCA1"]["Accel"] == 0.0 and by["REGCA1"]["Khv"] == 0.0
+    reec = by["REECB1"]
+    assert (reec["PFFLAG"], reec["VFLAG"], reec["QFLAG"], reec["PQFLAG"]) == (
+        0,
+        1,
+        1,
+        0,
+    )
+    assert (reec["Kqv"], reec["Imax"], reec["Tpord"]) == (1.0, 1.11, 0.02)
+    repc = by["REPCA1"]
+    assert repc["CKT"] == "0" and (repc["RefFlag"], repc["Fflag"]) == (1, 0)
+    assert (repc["Kp"], repc["Ki"], repc["Dup"]) == (25.0, 15.0, 0.0)
+
+
+@pytest.mark.parametrize("flags", FLAGS)
+@pytest.mark.parametrize("parts", [(True, True), (True, False), (False, False)])
+def test_the_operating_point_is_an_exact_equilibrium(flags, parts):
+    """Every derivative below 1e-10 at rest and the injected power equal to the power
+    flow's, with and without the controllers."""
+    d = _plant(flags, *parts)
+    x0, ref = d.init(V0, S0, 100.0)
+    assert x0.shape == (len(d.state_names), 1)
+    assert float(jnp.max(jnp.abs(d.rhs(x0, V0, ref, 100.0)))) < 1e-10
+    s = V0 * jnp.conj(d.current(x0, V0, ref, 100.0))
+    np.testing.assert_allclose(np.asarray(s), np.asarray(S0), atol=1e-14)
+
+
+def test_a_voltage_step_moves_the_controls():
+    """Guards the equilibrium test: off the operating voltage the chain is not at
+    rest (the converter's Iq lag and the plant's voltage filter move)."""
+    d = _plant("NOFREQFLAG_with_REF_FLAG")
+    x0, ref = d.init(V0, S0, 100.0)
+    dx = np.asarray(d.rhs(x0, V0 * 1.01, ref, 100.0))[:, 0]
+    names = d.state_names
+    assert dx[names.index("Vmeas")] == pytest.approx(0.01015 / 0.2, rel=1e-9)
+    assert dx[names.index("Vt_filt")] == pytest.approx(0.01015 / 0.02, rel=1e-9)
+    assert dx[list(names).index("Mflt")] == pytest.approx(0.01015 / 0.02, rel=1e-9)
+
+
+def test_low_voltage_logic_closed_forms():
+    """LVACM gain clip((V - Lvpnt0)/(Lvpnt1 - Lvpnt0), 0, 1) and the LVPL ramp
+    Lvpl1 (V - Zerox)/(Brkpt - Zerox) below Brkpt (WECC 240's REGCA1: LVPLSW = 1,
+    Brkpt 0.9, Zerox 0.4, Lvpl1 1.22, Lvpnt0 0.4, Lvpnt1 0.9)."""
+    d = _plant(REGCA1__LVPLSW=1.0, REGCA1__Lvpnt1=0.9, REGCA1__Lvpnt0=0.4)
+    g = d.regc
+    v = jnp.array([0.3, 0.4, 0.65, 0.9, 1.0])
+    np.testing.assert_allclose(g.g_lv(v), [0, 0, 0.5, 1, 1], atol=1e-15)
+    lim = np.asarray(g.lvpl(v))
+    np.testing.assert_allclose(lim[:3], [0, 0, 1.22 * 0.25 / 0.5], atol=1e-15)
+    assert np.all(lim[3:] >= 1e6)
+    # high-voltage reactive management: Iq - Khv (V - Volim), floored at Iolim
+    g = _plant(REGCA1__Khv=0.7, REGCA1__Volim=1.2).regc
+    x = jnp.array([[0.4], [0.2], [1.0]])
+    _, iq, _ = g.outputs(x, jnp.array([1.3]))
+    assert float(iq[0]) == pytest.approx(0.2 - 0.07, abs=1e-15)
+    _, iq, _ = g.outputs(x, jnp.array([4.0]))
+    assert float(iq[0]) == pytest.approx(-1.3, abs=1e-15)
+
+
+@pytest.mark.parametrize("pqflag", [0.0, 1.0])
+def test_current_limit_logic(pqflag):
+    """Q priority (PQFLAG 0): Iqcmd up to Imax, Ipcmd within sqrt(Imax^2 - Iqcmd^2);
+    P priority (1): the other way round (REECB1's current limit logic)."""
+    d = _plant(REECB1__PQFLAG=pqflag, REECB1__Kqv=0.0)
+    x0, ref = d.init(V0, S0, 100.0)
+    e = d.reec
+    xe = x0[3:9]
+    # Vt_filt 1.0 pu, xIq (the Q/V lag) 1.0 pu, Pord 1.0 pu
+    xe = xe.at[0].set(1.0).at[4].set(1.0).at[5].set(1.0)
+    ipc, iqc, _, sig = e.control(xe, 1.0, 0.4, 0.1, 0.4, 0.1, ref["reec"])
+    imax = 1.11
+    if pqflag == 0.0:
+        assert float(iqc[0]) == pytest.approx(1.0, abs=1e-12)
+        assert float(ipc[0]) == pytest.approx(np.sqrt(imax**2 - 1.0), abs=1e-12)
+    else:
+        assert float(ipc[0]) == pytest.approx(1.0, abs=1e-12)
+        assert float(iqc[0]) == pytest.approx(np.sqrt(imax**2 - 1.0), abs=1e-12)
+    assert float(sig["Ipmax"][0]) ** 2 <= imax**2 + 1e-12
+
+
+def test_bad_records_are_refused_in_one_line():
+    with pytest.raises(ParameterError, match=r"REECB1\.BUSR = \[5\.\].*remote"):
+        _plant(REECB1__BUSR=5.0)
+    with pytest.raises(ParameterError, match=r"REPCA1\.IREG = \[7\.\].*remote"):
+        _plant(REPCA1__IREG=7.0)
+    with pytest.raises(ParameterError, match=r"REGCA1\.LVPLSW = \[2\.\]"):
+        _plant(REGCA1__LVPLSW=2.0)
+    # an operating point beyond the converter's current limit
+    d = _plant(REECB1__Imax=0.2)
+    with pytest.raises(ParameterError, match=r"REECB1\.Imax = \[0\.2\]"):
+        d.init(V0, S0, 100.0)
+
+
+def test_a_gain_has_a_gradient_equal_to_central_differences():
+    """The converter's reactive current 20 ms after a 2 % voltage dip, differentiated
+    in REPCA1's Kp (the plant's voltage loop), against central differences."""
+
+    def response(kp):
+        d = _plant("NOFREQFLAG_with_REF_FLAG")
+        d = eqx.tree_at(lambda m: m.repc.Kp, d, jnp.atleast_1d(kp))
+        x, ref = d.init(V0, S0, 100.0)
+        h = 1e-3
+        for _ in range(20):  # explicit Euler, 1 ms steps: a fixed computation
+            x = x + h * d.rhs(x, V0 * 0.98, ref, 100.0)
+        return jnp.sum(x[1])  # Iq
+
+    g = jax.grad(response)(25.0)
+    eps = 1e-4
+    fd = (response(25.0 + eps) - response(25.0 - eps)) / (2 * eps)
+    assert abs(float(g)) > 1e-6
+    assert float(g) == pytest.approx(float(fd), rel=1e-6)
