@@ -156,6 +156,16 @@ def add_case_options(p, events: bool = True) -> None:
         default=1.0,
         help="scale every load (P and Q) and the non-slack generation (default 1)",
     )
+    # issue 47: loads as PSS/E models them
+    g.add_argument(
+        "--load-model",
+        metavar="SPEC",
+        help="the loads in dynamics: 'p=P,I,Z q=P,I,Z [pqbrak=0.7] [ibrak=0.5]', the "
+        "shares of each load's constant power kept as constant power, converted to "
+        "constant current and to constant impedance (PSS/E's CONL), or impedance, "
+        "current, power; default: every load a constant impedance "
+        "(docs/loads-events.md)",
+    )
     if events:
         g.add_argument("--fault-bus", type=int, metavar="BUS", help="bus fault at BUS")
         g.add_argument(
@@ -303,6 +313,7 @@ def load(args):
         params = _params(args.param)
         if params:
             case = set_params(case, params)
+        case = _with_load_model(case, args)
         op, pf = operating_point(case, args.load_factor, args.load_factor)
     except (CaseError, PsseError, ParamError, PowerFlowError) as e:
         raise CLIError(str(e)) from None
@@ -311,6 +322,16 @@ def load(args):
     except ValueError as e:  # parameter checks of the device models
         raise CLIError(str(e).splitlines()[0]) from None
     return case, op, pf
+
+
+def _with_load_model(case, args):
+    """`case` with --load-model's loads (the case itself without the flag)."""
+    spec = getattr(args, "load_model", None)
+    if spec is None:
+        return case
+    from ..grid.loads import parse_load_model, with_load_model
+
+    return with_load_model(case, parse_load_model(spec))
 
 
 def events_from_args(case, args) -> tuple:
@@ -571,11 +592,20 @@ def run_simulate(args) -> int:
     verdict = (
         "stable"
         if bool(tr.stable)
-        else ("step budget exhausted" if bool(tr.exhausted) else "UNSTABLE")
+        else (
+            "step budget exhausted"
+            if bool(tr.exhausted)
+            else ("VOLTAGE COLLAPSE" if bool(tr.collapsed) else "UNSTABLE")
+        )
     )
     names = gen_names(case)
     print(f"{verdict} ({wall:.1f} s)")
-    if not bool(tr.stable) and not bool(tr.exhausted):
+    if bool(tr.collapsed):
+        print(
+            f"  the network has no solution from t = {float(tr.t_collapse):.3f} s "
+            "(voltage collapse: constant power or current loads past the nose point)"
+        )
+    elif not bool(tr.stable) and not bool(tr.exhausted):
         print(
             f"  synchronism lost at t = {float(tr.t_unstable):.3f} s (|angle - COI| > pi)"
         )
@@ -610,6 +640,9 @@ def run_simulate(args) -> int:
                     "stable": bool(tr.stable),
                     "t_unstable": float(tr.t_unstable),
                     "exhausted": bool(tr.exhausted),
+                    "collapsed": bool(tr.collapsed),
+                    "t_collapse": float(tr.t_collapse),
+                    "load_model": getattr(args, "load_model", None),
                     "rtol": args.rtol,
                     "atol": args.atol,
                     "params": _params(args.param),

@@ -14,6 +14,9 @@ Evaluation order in the vector field, per right-hand-side call:
 5. the machines' and controllers' derivatives; the SVCs' from their bus voltages.
    A tripped machine (generator status 0) injects nothing and its states and its
    controllers' states freeze.
+With current injectors (`AbstractInjector`: loads other than impedances, inverter
+based resources) step 2 is a Newton solve of the network with their currents
+(`network.solve_injections`); without them it is the linear solution, unchanged.
 Commands no controller writes stay at their operating-point values (`held`).
 """
 
@@ -27,13 +30,21 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Complex, Float
 
-from .devices.base import AbstractController, AbstractMachine, AbstractShuntDevice
-from .network import Grid, StageMatrices, solve_ports
+from .devices.base import (
+    AbstractController,
+    AbstractInjector,
+    AbstractMachine,
+    AbstractShuntDevice,
+)
+from .network import Grid, StageMatrices, solve_injections, solve_ports
 from .system import System
 
 __all__ = [
     "Case",
     "Operating",
+    "with_injectors",
+    "evaluate_all",
+    "network_residual",
     "initialize",
     "vector_field",
     "MEASUREMENTS",
@@ -81,17 +92,42 @@ class Layout:
     gen_bus: tuple[int, ...]
     n_gen: int
     n_bus: int
+    # current injectors (issue 47): per group, the bus positions, the port of each
+    # device, its power-flow source position (a generator or a load, `source`), the
+    # position of its port among the injector ports; and the injector ports (unique
+    # port positions, in order)
+    injector_bus: tuple[tuple[int, ...], ...] = ()
+    injector_port: tuple[tuple[int, ...], ...] = ()
+    injector_src: tuple[tuple[int, ...], ...] = ()
+    injector_jpos: tuple[tuple[int, ...], ...] = ()
+    inj_ports: tuple[int, ...] = ()
 
 
-def make_layout(system: System, machines, controllers, svcs, sources) -> Layout:
+def make_layout(
+    system: System, machines, controllers, svcs, sources, injectors=()
+) -> Layout:
     gb = np.asarray(system.generators.bus)
     mg = [tuple(int(i) for i in np.asarray(m.gen)) for m in machines]
     sb = [tuple(int(i) for i in np.asarray(s.bus)) for s in svcs]
-    buses = [gb[list(g)] for g in mg] + [np.array(b, dtype=np.int64) for b in sb]
+    ib = [tuple(int(i) for i in np.asarray(d.bus)) for d in injectors]
+    buses = [gb[list(g)] for g in mg] + [
+        np.array(b, dtype=np.int64) for b in (*sb, *ib)
+    ]
     ports = tuple(int(b) for b in np.unique(np.concatenate(buses))) if buses else ()
     pmap = {b: k for k, b in enumerate(ports)}
     src = tuple(int(i) for i in np.asarray(sources))
+    iport = tuple(tuple(pmap[b] for b in g) for g in ib)
+    jports = tuple(sorted({p for g in iport for p in g}))
+    jmap = {p: k for k, p in enumerate(jports)}
+    isrc = tuple(
+        tuple(int(i) for i in np.asarray(getattr(d, d.source))) for d in injectors
+    )
     return Layout(
+        injector_bus=tuple(ib),
+        injector_port=iport,
+        injector_src=isrc,
+        injector_jpos=tuple(tuple(jmap[p] for p in g) for g in iport),
+        inj_ports=jports,
         ports=ports,
         machine_gen=tuple(mg),
         machine_port=tuple(tuple(pmap[int(gb[i])] for i in g) for g in mg),
@@ -115,7 +151,10 @@ class Case(eqx.Module):
     `AbstractController` (any order: the loop evaluates stabilizers, then exciters,
     then governors); `svcs`: groups of `AbstractShuntDevice`; `sources`: generator
     positions that are infinite buses (PSS/E GENCLS with H = 0: a fixed voltage behind
-    no impedance), held at their power-flow voltage."""
+    no impedance), held at their power-flow voltage; `injectors`: groups of
+    `AbstractInjector` (current injectors solved with the network by Newton's method;
+    none: the linear network). A case with new device groups needs a new layout:
+    build it anew (`with_injectors`) rather than `eqx.tree_at`."""
 
     system: System
     machines: tuple[AbstractMachine, ...]
@@ -124,11 +163,17 @@ class Case(eqx.Module):
     sources: tuple[int, ...] = eqx.field(static=True, default=())
     name: str = eqx.field(static=True, default="")
     layout: Layout = eqx.field(static=True, default=None)
+    injectors: tuple[AbstractInjector, ...] = ()
 
     def __post_init__(self):
         if self.layout is None:
             lay = make_layout(
-                self.system, self.machines, self.controllers, self.svcs, self.sources
+                self.system,
+                self.machines,
+                self.controllers,
+                self.svcs,
+                self.sources,
+                self.injectors,
             )
             object.__setattr__(self, "layout", lay)
 
@@ -140,10 +185,26 @@ class Case(eqx.Module):
         return np.asarray(self.layout.ports, dtype=np.int64)
 
 
+def with_injectors(case: Case, injectors) -> Case:
+    """`case` with its injector groups replaced by `injectors` (a new layout)."""
+    return Case(
+        system=case.system,
+        machines=case.machines,
+        controllers=case.controllers,
+        svcs=case.svcs,
+        sources=case.sources,
+        name=case.name,
+        injectors=tuple(injectors),
+    )
+
+
 class Operating(eqx.Module):
     """A case at its operating point: the network's fixed data (`grid`), the
     operating-point commands of each machine group (`held`), each controller's and
-    SVC's reference, the initial state y0 (flat) and the power-flow bus voltages."""
+    SVC's reference, the initial state y0 (flat) and the power-flow bus voltages;
+    with injectors, each group's reference (`inj_refs`) and the injectors'
+    equivalent admittance at rest per injector port (`inj_y0`, pu: the Newton
+    solve's start)."""
 
     grid: Grid
     held: tuple[dict, ...]
@@ -152,11 +213,17 @@ class Operating(eqx.Module):
     y0: Float[Array, " n_state"]
     v_bus: Complex[Array, " n"]
     sizes: tuple[int, ...] = eqx.field(static=True)
+    inj_refs: tuple[Any, ...] = ()
+    inj_y0: Complex[Array, " J"] | None = None
 
 
-def _load_y(system: System, vm):
+def _load_y(system: System, vm, keep=None):
+    """Loads as constant impedances at the voltages vm (pu), except those a
+    "load" injector holds (`keep`: 0 there), plus the fixed shunts, per bus (pu)."""
     ld = system.loads
     y = (ld.p - 1j * ld.q) / vm[np.asarray(ld.bus)] ** 2
+    if keep is not None:
+        y = y * keep
     out = jnp.zeros(system.n_bus, dtype=jnp.complex128).at[np.asarray(ld.bus)].add(y)
     sh = system.shunts
     return out.at[np.asarray(sh.bus)].add(sh.g + 1j * sh.b)
@@ -219,16 +286,17 @@ def initialize(case: Case, vm, va, p_gen, q_gen) -> Operating:
         x0, ref = s.init(v[b], q, s_base)
         svc_refs.append(ref)
         svc_blocks.append(x0)
+    inj_refs, inj_blocks, bus_y, inj_y0 = _init_injectors(case, v, s_gen, vm)
     src = np.asarray(lay.source_gen, dtype=np.int64)
     grid = Grid(
         system=sys_,
-        bus_y=_load_y(sys_, vm),
+        bus_y=bus_y,
         gen_y=gen_y,
         ports=case.ports(),
         dirichlet=gbus[src],
         v_dirichlet=v[gbus[src]],
     )
-    allb = blocks + ctrl_blocks + svc_blocks
+    allb = blocks + ctrl_blocks + svc_blocks + inj_blocks
     sizes = tuple(int(np.prod(b.shape)) for b in allb)
     y0 = jnp.concatenate([b.reshape(-1) for b in allb]) if allb else jnp.zeros(0)
     return Operating(
@@ -239,19 +307,70 @@ def initialize(case: Case, vm, va, p_gen, q_gen) -> Operating:
         y0=y0,
         v_bus=v,
         sizes=sizes,
+        inj_refs=inj_refs,
+        inj_y0=inj_y0,
     )
 
 
+def _init_injectors(case: Case, v, s_gen, vm):
+    """Each injector group at rest: (refs, state blocks, the bus admittances of the
+    loads left as impedances, the shunts and the injectors' own admittances (pu),
+    the injectors' equivalent admittance at rest per injector port (None without
+    injectors))."""
+    sys_ = case.system
+    s_base = sys_.s_base
+    lay = case.layout
+    if not case.injectors:
+        return (), [], _load_y(sys_, vm), None
+    ld = sys_.loads
+    keep = np.ones(len(np.asarray(ld.bus)))
+    s_load = -(jnp.asarray(ld.p) + 1j * jnp.asarray(ld.q))
+    refs, blocks = [], []
+    y_start = jnp.zeros(len(lay.inj_ports), dtype=jnp.complex128)
+    extra = jnp.zeros(sys_.n_bus, dtype=jnp.complex128)
+    for k, d in enumerate(case.injectors):
+        b = np.asarray(lay.injector_bus[k], dtype=np.int64)
+        src = np.asarray(lay.injector_src[k], dtype=np.int64)
+        if d.source == "load":
+            keep[src] = 0.0
+            s0 = s_load[src]
+        else:
+            s0 = s_gen[src]
+        x0, ref = d.init(v[b], s0, s_base)
+        i0 = d.current(x0, v[b], ref, s_base)
+        jp = np.asarray(lay.injector_jpos[k], dtype=np.int64)
+        y_start = y_start.at[jp].add(-i0 / v[b])
+        extra = extra.at[b].add(d.admittance(ref, s_base))
+        refs.append(ref)
+        blocks.append(x0)
+    return tuple(refs), blocks, _load_y(sys_, vm, jnp.asarray(keep)) + extra, y_start
+
+
 def unpack(case: Case, op: Operating, y):
-    """The flat state as blocks (n_states, k) per group: machines, controllers, SVCs."""
-    groups = [*case.machines, *case.controllers, *case.svcs]
+    """The flat state as blocks (n_states, k) per group: machines, controllers, SVCs
+    (`unpack_injectors`: the injectors' blocks, which follow)."""
+    return _unpack(case, op, y)[:3]
+
+
+def unpack_injectors(case: Case, op: Operating, y):
+    """The injectors' state blocks (n_states, k) per group."""
+    return _unpack(case, op, y)[3]
+
+
+def _unpack(case: Case, op: Operating, y):
+    groups = [*case.machines, *case.controllers, *case.svcs, *case.injectors]
     out, i = [], 0
     for g, size in zip(groups, op.sizes, strict=True):
         ns = len(g.state_names)
         out.append(y[i : i + size].reshape(ns, size // max(ns, 1)) if ns else y[i:i])
         i += size
-    nm, nc = len(case.machines), len(case.controllers)
-    return out[:nm], out[nm : nm + nc], out[nm + nc :]
+    nm, nc, ns = len(case.machines), len(case.controllers), len(case.svcs)
+    return (
+        out[:nm],
+        out[nm : nm + nc],
+        out[nm + nc : nm + nc + ns],
+        out[nm + nc + ns :],
+    )
 
 
 def gen_names(case: Case) -> tuple[str, ...]:
@@ -273,6 +392,7 @@ def state_labels(case: Case) -> tuple[tuple[str, str, str], ...]:
         [(m, lay.machine_gen[k], "gen") for k, m in enumerate(case.machines)]
         + [(c, lay.controller_gen[k], "gen") for k, c in enumerate(case.controllers)]
         + [(s, lay.svc_bus[k], "bus") for k, s in enumerate(case.svcs)]
+        + [(d, lay.injector_bus[k], "bus") for k, d in enumerate(case.injectors)]
     )
     for dev, where, kind in groups:
         label = [names[i] if kind == "gen" else str(int(bus_nums[i])) for i in where]
@@ -282,17 +402,30 @@ def state_labels(case: Case) -> tuple[tuple[str, str, str], ...]:
 
 
 def evaluate(case: Case, op: Operating, mats: StageMatrices, stage, y, u=None):
+    """`evaluate_all` without the network residual."""
+    return evaluate_all(case, op, mats, stage, y, u)[:3]
+
+
+def network_residual(case: Case, op: Operating, mats: StageMatrices, stage, y):
+    """The residual of the network solution with injectors (pu voltage, max over the
+    injector ports; 0 without injectors): above `network.COLLAPSE_TOL` the network
+    has no solution at state y (voltage collapse)."""
+    return evaluate_all(case, op, mats, stage, y)[3]
+
+
+def evaluate_all(case: Case, op: Operating, mats: StageMatrices, stage, y, u=None):
     """(dy/dt, measurements over all generators, net port currents) in stage
     `stage`; the bus voltages are then `mats.bus_voltages(stage, i)`. `u`: optional
     additive inputs by name over all generators: "Efd" and "Pm" (added to the
     machines' commands), "Vs" (added to the stabilizer signal the exciters read),
     "Efd_cmd" (the external command a DirectField exciter reads; 0 without it);
-    "Bsvc" over all buses (added to the SVCs' external command)."""
+    "Bsvc" over all buses (added to the SVCs' external command). A fourth output:
+    the network residual (`network_residual`)."""
     u = {} if u is None else u
     sys_ = case.system
     s_base = sys_.s_base
     lay = case.layout
-    xm, xc, xs = unpack(case, op, y)
+    xm, xc, xs, xi = _unpack(case, op, y)
     A, c = mats.A[stage], mats.c[stage]
     gst = mats.gen_status[stage]
     n_port = len(lay.ports)
@@ -310,7 +443,31 @@ def evaluate(case: Case, op: Operating, mats: StageMatrices, stage, y, u=None):
         for k, (s, x) in enumerate(zip(case.svcs, xs, strict=True)):
             pidx = np.asarray(lay.svc_port[k], dtype=np.int64)
             y_sh = y_sh.at[pidx].add(s.admittance(x, s_base))
-    v_p = solve_ports(A, c, i_p, y_sh)
+    res = jnp.zeros(())
+    if case.injectors:
+        inj_on = [
+            gst[np.asarray(lay.injector_src[k], dtype=np.int64)]
+            if d.source == "gen"
+            else jnp.ones(len(lay.injector_src[k]))
+            for k, d in enumerate(case.injectors)
+        ]
+
+        def inj_current(vj):
+            tot = jnp.zeros(len(lay.inj_ports), dtype=jnp.complex128)
+            for k, (d, x, ref) in enumerate(
+                zip(case.injectors, xi, op.inj_refs, strict=True)
+            ):
+                jp = np.asarray(lay.injector_jpos[k], dtype=np.int64)
+                tot = tot.at[jp].add(d.current(x, vj[jp], ref, s_base) * inj_on[k])
+            return tot
+
+        v_p, _, res = solve_injections(
+            A, c, i_p, y_sh, lay.inj_ports, inj_current, op.inj_y0
+        )
+        vj = v_p[np.asarray(lay.inj_ports, dtype=np.int64)]
+        i_p = i_p.at[np.asarray(lay.inj_ports, dtype=np.int64)].add(inj_current(vj))
+    else:
+        v_p = solve_ports(A, c, i_p, y_sh)
     n_gen = case.n_gen
     meas = {k: jnp.zeros(n_gen) for k in MEASUREMENTS + PHASORS}
     vgen = []
@@ -363,11 +520,16 @@ def evaluate(case: Case, op: Operating, mats: StageMatrices, stage, y, u=None):
         pidx = np.asarray(lay.svc_port[k], dtype=np.int64)
         ext = u["Bsvc"][np.asarray(lay.svc_bus[k])] if "Bsvc" in u else 0.0
         ds.append(s.rhs(x, jnp.abs(v_p[pidx]), jnp.zeros(len(pidx)) + ext, ref))
-    blocks = dm + dctrl + ds
+    di = []
+    for k, (d, x, ref) in enumerate(zip(case.injectors, xi, op.inj_refs, strict=True)):
+        vb = v_p[np.asarray(lay.injector_port[k], dtype=np.int64)]
+        dx = d.rhs(x, vb, ref, s_base)
+        di.append((jnp.reshape(dx, (-1, len(vb))) * inj_on[k]).reshape(jnp.shape(dx)))
+    blocks = dm + dctrl + ds + di
     dy = jnp.concatenate([b.reshape(-1) for b in blocks]) if blocks else jnp.zeros(0)
     meas = meas | {"Efd": cmd["Efd"], "Pm": cmd["Pm"], "Vs": cmd["Vs"]}
     i_net = i_p if y_sh is None else i_p - y_sh * v_p
-    return dy, meas, i_net
+    return dy, meas, i_net, res
 
 
 def _rhs(case: Case, op: Operating, mats: StageMatrices, t_switch, t, y):

@@ -355,6 +355,12 @@ def scale_operating_point(system: System, load_factor=1.0, gen_factor=1.0) -> Sy
     ld, g = system.loads, system.generators
     at_slack = jnp.asarray(system.buses.kind)[jnp.asarray(g.bus)] == SLACK
     gf = jnp.where(at_slack, 1.0, gen_factor)
+    if np.size(ld.p_i):  # the constant-current parts scale with the loads
+        system = eqx.tree_at(
+            lambda s: (s.loads.p_i, s.loads.q_i),
+            system,
+            (jnp.asarray(ld.p_i) * load_factor, jnp.asarray(ld.q_i) * load_factor),
+        )
     return eqx.tree_at(
         lambda s: (s.loads.p, s.loads.q, s.generators.p),
         system,

@@ -870,7 +870,7 @@ def to_system(raw: RawData) -> System:
         if on:
             shunt(r["I"], y_m.real, y_m.imag)
 
-    ld_bus, ld_p, ld_q, ld_id = [], [], [], []
+    ld_bus, ld_p, ld_q, ld_id, ld_pi, ld_qi = [], [], [], [], [], []
     current = []
     for r in raw.loads:
         if r["STATUS"] == 0:
@@ -882,12 +882,15 @@ def to_system(raw: RawData) -> System:
         ld_p.append((r["PL"] + r["IP"] * v) / sb)
         ld_q.append((r["QL"] + r["IQ"] * v) / sb)
         ld_id.append(r["ID"])
+        ld_pi.append(r["IP"] * v / sb)
+        ld_qi.append(r["IQ"] * v / sb)
         shunt(r["I"], r["YP"] / sb, r["YQ"] / sb)
     if current:
         first = current[0]
         warnings.warn(
             f"{raw.path}:{first['_line']}: {len(current)} load(s) with a constant-current "
-            "part (IP, IQ) converted to constant power at the raw file's bus voltage VM",
+            "part (IP, IQ) converted to constant power at the raw file's bus voltage VM "
+            "in the power flow (kept as constant current under a load model)",
             stacklevel=2,
         )
     for r in raw.fixed_shunts:
@@ -922,7 +925,12 @@ def to_system(raw: RawData) -> System:
         ),
         shunts=Shunts(bus=np.array(sh_bus, dtype=np.int64), g=sh_g, b=sh_b),
         loads=Loads(
-            bus=np.array(ld_bus, dtype=np.int64), p=ld_p, q=ld_q, ident=tuple(ld_id)
+            bus=np.array(ld_bus, dtype=np.int64),
+            p=ld_p,
+            q=ld_q,
+            ident=tuple(ld_id),
+            p_i=ld_pi,
+            q_i=ld_qi,
         ),
         generators=Generators(
             bus=np.array([pos[g["I"]] for g in gens], dtype=np.int64),

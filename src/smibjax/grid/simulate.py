@@ -7,7 +7,10 @@ carry no gradient (`RigidSteps`: derivatives with respect to clearing and reclos
 times stay right after the switch). A run
 that loses synchronism (a machine's angle more than pi from the centre of inertia;
 from the infinite bus where the case has one) stops there: `stable` is False and
-`t_unstable` says when; samples after it are NaN. Pure and jittable; vmap over events
+`t_unstable` says when; samples after it are NaN. With current injectors (loads
+other than impedances) a network that has no solution (voltage collapse: the
+Newton solve's residual above `network.COLLAPSE_TOL`) stops the run the same way,
+with `collapsed` True and `t_collapse` its time. Pure and jittable; vmap over events
 of one structure (`simulate_batch`), differentiable through the adaptive solver.
 """
 
@@ -26,8 +29,8 @@ from .._options import SolverOptions
 from .._solve import adaptive_solve
 from .._validate import ParameterError
 from .events import check_order, check_positions, switch_times
-from .loop import Case, Operating, evaluate, vector_field
-from .network import stage_configs, stage_matrices
+from .loop import Case, Operating, evaluate, network_residual, vector_field
+from .network import COLLAPSE_TOL, stage_configs, stage_matrices
 
 __all__ = [
     "GridTrajectory",
@@ -50,7 +53,11 @@ class GridTrajectory(eqx.Module):
     infinite bus) is in service at the sample, 0 from its trip; `delta_ref`: the
     angles (rad, synchronous frame) of the post-disturbance equilibrium where it is
     known, the operating point's when the network in force at t_end is the one
-    before the events (faults cleared, branches reclosed), NaN otherwise."""
+    before the events (faults cleared, branches reclosed), NaN otherwise.
+    `collapsed`: the run stopped because the network had no solution (voltage
+    collapse with constant power loads; `stable` is then False and `t_unstable` =
+    `t_collapse`, the time of the first accepted step without a solution; inf if
+    none)."""
 
     ts: Float[Array, " T"]
     delta: Float[Array, "T n_gen"]
@@ -68,6 +75,8 @@ class GridTrajectory(eqx.Module):
     y_final: Float[Array, " n_state"]
     gen_on: Float[Array, "T n_gen"]
     delta_ref: Float[Array, " n_gen"]
+    collapsed: Bool[Array, ""]
+    t_collapse: Float[Array, ""]
 
 
 def coi_weights(case: Case, gen_status) -> Float[Array, " n_gen"]:
@@ -144,7 +153,13 @@ def simulate_case(
         stage = jnp.sum(t >= t_sw) if t_sw.shape[0] else 0
         delta = _delta_of(case, op, y)
         spread = angle_spread(case, delta, mats.gen_status[stage] * mask)
-        return spread > jnp.pi
+        return (spread > jnp.pi) | _collapsed(t, y)
+
+    def _collapsed(t, y):
+        if not case.injectors:
+            return jnp.asarray(False)
+        stage = jnp.sum(t >= t_sw) if t_sw.shape[0] else 0
+        return ~(network_residual(case, op, mats, stage, y) <= COLLAPSE_TOL)
 
     if fixed_dt is None:
         if solver is None:
@@ -177,7 +192,14 @@ def simulate_case(
     same = _same_network(cfgs, stage[-1])
     delta_ref = jnp.where(same, _delta_of(case, op, op.y0), jnp.nan)
     fields = _record(case, op, mats, t_sw, ts, ys, stopped, sol.ts[k], sol, sol.ys[k])
-    return GridTrajectory(**fields, gen_on=gen_on, delta_ref=delta_ref)
+    collapsed = stopped & _collapsed(sol.ts[k], sol.ys[k])
+    return GridTrajectory(
+        **fields,
+        gen_on=gen_on,
+        delta_ref=delta_ref,
+        collapsed=collapsed,
+        t_collapse=jnp.where(collapsed, sol.ts[k], jnp.inf),
+    )
 
 
 def _same_network(cfgs, stage):

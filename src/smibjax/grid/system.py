@@ -89,14 +89,28 @@ class Shunts(eqx.Module):
 
 
 class Loads(eqx.Module):
-    """Loads at bus position `bus`: constant power p + j q (pu). In the dynamic
-    simulation they are converted to constant impedance at the power-flow voltage,
-    y = (p - j q) / |V|^2, as transient-stability programs do."""
+    """Loads at bus position `bus`: power p + j q (pu) in the power flow. In the
+    dynamic simulation they are converted to constant impedance at the power-flow
+    voltage, y = (p - j q) / |V|^2, as transient-stability programs do, unless a
+    load model says otherwise (`grid.loads.LoadModel`). `p_i`, `q_i` (pu; empty:
+    zeros) are the parts of p and q that the raw file gives as constant current
+    (IP, IQ times the raw file's voltage VM), which a load model keeps as constant
+    current; the rest of p, q is the raw file's constant power PL, QL (its
+    constant admittance YP, YQ is a shunt)."""
 
     bus: Int[np.ndarray, " n_load"] = eqx.field(converter=_i)
     p: Float[Array, " n_load"] = eqx.field(converter=_f)
     q: Float[Array, " n_load"] = eqx.field(converter=_f)
     ident: tuple[str, ...] = eqx.field(static=True, default=())
+    p_i: Float[Array, " n_load"] = eqx.field(converter=_f, default=())
+    q_i: Float[Array, " n_load"] = eqx.field(converter=_f, default=())
+
+    def current_parts(self):
+        """(p_i, q_i) with zeros where none were given (pu)."""
+        n = len(np.asarray(self.bus))
+        pi = self.p_i if np.size(self.p_i) else np.zeros(n)
+        qi = self.q_i if np.size(self.q_i) else np.zeros(n)
+        return pi, qi
 
 
 class Generators(eqx.Module):

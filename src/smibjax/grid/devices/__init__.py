@@ -38,3 +38,7 @@ from .pss2 import PSS2B as PSS2B
 from .scrx import SCRX as SCRX
 from .st2cut import ST2CUT as ST2CUT
 from .stab2a import STAB2A as STAB2A
+
+# isort: split
+# issue 47: loads as current injectors
+from .zipload import ZIPLoad as ZIPLoad

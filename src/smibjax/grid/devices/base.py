@@ -40,6 +40,7 @@ __all__ = [
     "AbstractMachine",
     "AbstractController",
     "AbstractShuntDevice",
+    "AbstractInjector",
     "f64",
     "i64",
 ]
@@ -154,3 +155,63 @@ class AbstractShuntDevice(eqx.Module):
     @abc.abstractmethod
     def init(self, v: CVec, q: Vec, s_base: float) -> tuple[States, Vec]:
         """(x0, ref) for bus voltages v and reactive injection q (pu, system base)."""
+
+
+class AbstractInjector(eqx.Module):
+    """A group of current injectors of one model at bus positions `bus`: devices
+    whose current into the network depends on their bus voltage (and their own
+    states), solved with the network by Newton's method at every evaluation
+    (`network.solve_injections`). Loads other than constant impedances (`ZIPLoad`)
+    and inverter-based resources are injectors.
+
+    The contract (every method pure, vectorized over the device axis k):
+
+    - `bus` (k,): bus positions in `System.buses`, fixed when the case is built
+      (the loop makes every injector bus a port of the reduced network).
+    - `source` (ClassVar): where the device's power-flow injection comes from:
+      "gen" (the generator at position `gen[i]` of `System.generators`, s0 =
+      P_gen + j Q_gen; a tripped generator (`GenTrip`) injects nothing and its
+      injector's states freeze) or "load" (the load at position `load[i]` of
+      `System.loads`, s0 = -(p + j q): the load is then taken out of the constant
+      impedances the loop adds to the network, and the device's `admittance` put
+      in its place). The group holds `gen` or `load` (k,) accordingly.
+    - `state_names` (ClassVar): its states, x of shape (n_states, k); zero states
+      allowed (x of shape (0, k)).
+    - `init(v0, s0, s_base) -> (x0, ref)`: v0 (k,) complex bus voltages (pu) and
+      s0 (k,) complex power injected INTO the network (pu, system base) at the
+      power-flow solution; returns the states at rest and whatever reference the
+      device needs (any pytree of arrays with a trailing device axis), such that
+      `v0 * conj(current(x0, v0, ref, s_base) + admittance(ref, s_base) * v0)`
+      equals s0 and `rhs(x0, v0, ref, s_base)` is zero.
+    - `current(x, v, ref, s_base) -> (k,) complex`: the current injected into the
+      network (pu, system base, network frame) at bus voltages v (pu). It must
+      depend on each device's own v[i] only (the Newton solve takes the per-device
+      derivatives with respect to Re v and Im v by two forward-mode products), be
+      finite for every v including 0, and be differentiable.
+    - `rhs(x, v, ref, s_base) -> (n_states, k)`: dx/dt at bus voltages v.
+    - `admittance(ref, s_base) -> (k,) complex`: a constant shunt admittance
+      (pu, system base) the device adds to its bus for the whole run (the linear
+      part of a load; default zero); it is solved with the linear network, not by
+      Newton.
+    """
+
+    bus: eqx.AbstractVar[Int[np.ndarray, " k"]]
+    state_names: ClassVar[tuple[str, ...]]
+    source: ClassVar[str] = "gen"
+
+    @abc.abstractmethod
+    def init(self, v0: CVec, s0: CVec, s_base: float) -> tuple[States, object]:
+        """(x0, ref) at rest for bus voltages v0 (pu) and power injected into the
+        network s0 (pu, system base)."""
+
+    @abc.abstractmethod
+    def current(self, x: States, v: CVec, ref, s_base: float) -> CVec:
+        """The current injected into the network (pu, system base)."""
+
+    def rhs(self, x: States, v: CVec, ref, s_base: float) -> States:
+        """dx/dt (default: no states)."""
+        return jnp.zeros_like(x)
+
+    def admittance(self, ref, s_base: float) -> CVec:
+        """A constant shunt admittance added at the bus (pu, system base)."""
+        return jnp.zeros(len(self.bus), dtype=jnp.complex128)
