@@ -26,12 +26,7 @@ import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 
-from .base import f64, i64
-
-try:  # the injector interface (branch loads); until it is merged, a plain Module
-    from .base import AbstractInjector
-except ImportError:  # pragma: no cover
-    AbstractInjector = eqx.Module
+from .base import AbstractInjector, f64, i64
 from .reecb1 import REECB1
 from .regca1 import REGCA1
 from .repca1 import REPCA1
