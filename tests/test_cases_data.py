@@ -182,6 +182,9 @@ def test_case_files_are_package_data():
             "npcc.raw",
             "wecc179.dyr",
             "wecc179.raw",
+            # NREL's WECC 240-bus system with renewables (issue 47)
+            "wecc240.dyr",
+            "wecc240.raw",
         ]
     )
     assert (CASES_DIR / "README.md").is_file()

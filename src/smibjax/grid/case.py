@@ -39,6 +39,8 @@ BUILTIN = {
     "wecc179": ("wecc179.raw", "wecc179.dyr"),
     "npcc": ("npcc.raw", "npcc.dyr"),
     "nordic44": ("nordic44.raw", "nordic44.dyr"),
+    # issue 47: NREL's reduced WECC 240-bus system with 37 renewable plants
+    "wecc240": ("wecc240.raw", "wecc240.dyr"),
 }
 
 MACHINES = ("GENCLS", "GENTRA", "GENROU")
