@@ -9,15 +9,15 @@ Run from the repository root with ANDES installed:
 The case: smibjax's built-in `ieee14.raw` (ANDES's own file) with
 `tests/data/andes/ieee14_renewable.dyr`: ANDES's ieee14.dyr with its Toggle records
 removed and generator 8's GENROU, ESST3A and TGOV1 replaced by REGCA1 + REECB1 +
-REPCA1 (the WECC 240-bus case's parameters, with REPCA1 in voltage control:
-RefFlag = 1, no deadband; REECB1's VFLAG 0 and Vmin/Vmax -99/99, which do not act
-with QFLAG = 0 in PSS/E's diagram but which ANDES 2.0's REECB1 needs to initialize:
-its Q PI starts at 0, clamped to VMIN otherwise). A three-phase fault at bus 4
-through xf = 1e-2 pu from 1.0 s to 1.05 s, 10 s, constant-impedance loads (ANDES's TDS default), the power
-flow to 1e-12, TDS trapezoid at a fixed 1 ms step, tol 1e-8. The file holds t (s)
-on a 10 ms grid, the rotor angles of the four GENROU (rad, ANDES's order and bus
-numbers), every bus's voltage magnitude (pu) and angle (rad), the REGCA1's P and Q
-(pu, system base), and the settings.
+REPCA1 (the WECC 240-bus case's parameters, with REPCA1 in voltage control: RefFlag
+= 1, no deadband; REECB1's VFLAG 0 and Vmin/Vmax -99/99, which do not act with QFLAG
+= 0 in PSS/E's diagram but which ANDES 2.0's REECB1 needs to initialize: its Q PI
+starts at 0, clamped to VMIN otherwise). A three-phase fault at bus 4 through xf =
+1e-2 pu from 1.0 s to 1.05 s, 10 s, constant-impedance loads (ANDES's TDS default),
+the power flow to 1e-12, TDS trapezoid at a fixed 1 ms step, tol 1e-8. The file
+holds t (s) on a 10 ms grid, the rotor angles of the four GENROU (rad, ANDES's order
+and bus numbers), every bus's voltage magnitude (pu) and angle (rad), the REGCA1's P
+and Q (pu, system base), and the settings.
 """
 
 from __future__ import annotations
