@@ -185,6 +185,9 @@ def test_case_files_are_package_data():
             # ACTIVSg2000 (issues 45, 46)
             "activsg2000.dyr",
             "activsg2000.raw",
+            # NREL's WECC 240-bus system with renewables (issue 47)
+            "wecc240.dyr",
+            "wecc240.raw",
         ]
     )
     assert (CASES_DIR / "README.md").is_file()

@@ -876,6 +876,10 @@ def test_dyr_order_against_andes_yaml():
         "GAST",
         # issue 45: ANDES reads GGOV1 into a TGOV1 (R only), in PSS/E's CON order
         "GGOV1",
+        # issue 47: inverter-based resources
+        "REGCA1",
+        "REECB1",
+        "REPCA1",
     ]
     # our name -> ANDES's, where they differ
     alias = {
@@ -903,6 +907,20 @@ def test_dyr_order_against_andes_yaml():
         if m == "GGOV1":
             names |= {"Flag": "Fswitch", "Kigov": "KIgov", "Vmax": "VMAX"}
             names |= {"Vmin": "VMIN", "Kiload": "KIload", "Kimw": "KImw"}
+        # issue 47: inverter-based resources
+        names |= {"LVPLSW": "Lvplsw"} if m == "REGCA1" else {}
+        if m in ("REECB1", "REPCA1"):
+            names = {"Qmax": "QMax", "Qmin": "QMin", "Vmax": "VMAX", "Vmin": "VMIN"}
+            names |= {"Pmax": "PMAX", "Pmin": "PMIN", "IREG": "BUSR"}
+            names |= {"BRCH_FROM": "BUS1", "BRCH_TO": "BUS2", "CKT": "CKTID"}
+            names |= {"Tlag": "Tg"}
+            if m == "REPCA1":  # ANDES keeps REPCA1's limits in PSS/E's case
+                names |= {
+                    "Qmax": "Qmax",
+                    "Qmin": "Qmin",
+                    "Pmax": "Pmax",
+                    "Pmin": "Pmin",
+                }
         assert [names.get(n, n) for n in psse.DYR_MODELS[m]] == theirs, m
 
 

@@ -107,6 +107,12 @@ def grid_columns(a: dict) -> list[Column]:
         cols += [(key, g, unit, y[:, i]) for i, g in enumerate(gens)]
     vb = np.asarray(a["v_bus"], dtype=float)
     cols += [("v_bus", f"bus {int(b)}", "pu", vb[:, i]) for i, b in enumerate(a["bus"])]
+    # issue 47: per renewable plant (bus:id) its currents, limits and powers (pu
+    # machine base) and its terminal voltage angle (rad)
+    for key in [k for k in a if k.startswith("ibr_") and k != "ibr_gen"]:
+        y = np.asarray(a[key], dtype=float)
+        unit = "rad" if key == "ibr_Va" else "pu"
+        cols += [(key, f"G {g}", unit, y[:, i]) for i, g in enumerate(a["ibr_gen"])]
     return cols
 
 

@@ -852,6 +852,7 @@ def run_simulate(args) -> int:
             )
         ),
     }
+    arrays |= ibr_arrays(case, tr)  # issue 47: the renewables' signals
     if out:
         written = write_trajectory(
             out,
@@ -866,6 +867,24 @@ def run_simulate(args) -> int:
         plot_case(arrays, ev, case, plot)
         print(f"wrote {plot}")
     return 0
+
+
+# issue 47: inverter-based resources
+def ibr_arrays(case, tr) -> dict:
+    """The renewables' signals of a run (`GridTrajectory.ibr`) as arrays of
+    `simulate --case`: "ibr_gen" (the plants' bus:id) and "ibr_<signal>" (samples x
+    plants) for Ip, Iq, Ipcmd, Iqcmd, LVPL, Ipmax, Iqmax, Qe, Pref, Qext (pu machine
+    base) and Va (rad); none without renewables."""
+    from ..grid.loop import gen_names
+
+    if not tr.ibr:
+        return {}
+    names = gen_names(case)
+    g = sorted(int(i) for d in case.injectors if hasattr(d, "signals") for i in d.gen)
+    out = {"ibr_gen": np.array([names[i] for i in g])}
+    for k, v in tr.ibr.items():
+        out[f"ibr_{k}"] = np.asarray(v)[:, g]
+    return out
 
 
 def event_marks(case, ev) -> list[tuple[float, str]]:

@@ -511,8 +511,13 @@ def plot_grid_run(
         (a["vs"], "stabilizer output Vs (pu)"),
         (a["vt"], "terminal voltage (pu)"),
     ]
-    fig, axs = subplots(4, 2, figsize=(13, 10.5), sharex=True)
+    ibr = "ibr_gen" in a  # issue 47: a row for the renewables
+    fig, axs = subplots(
+        5 if ibr else 4, 2, figsize=(13, 13 if ibr else 10.5), sharex=True
+    )
     flat = list(axs.flat)
+    if ibr:
+        _ibr_panels(flat[8], flat[9], t, a)
     for ax, (y, ylabel) in zip(flat, panels, strict=False):
         _machine_panel(ax, t, y, shown, colors, labels)
         ax.set_ylabel(ylabel, fontsize=9)
@@ -558,6 +563,41 @@ def plot_grid_run(
     fig.suptitle(title, fontsize=10)
     fig.tight_layout(rect=(0, 0, 0.8, 0.97))
     save_figure(fig, path)
+
+
+# issue 47: inverter-based resources
+def _ibr_panels(ax_p, ax_q, t, a, n_named: int = 3) -> None:
+    """The renewables' active and reactive currents Ip, Iq (pu machine base): all
+    plants as a band, the `n_named` with the largest current excursion drawn and
+    named, with their current limits (Ipmax, and the LVPL where it binds; +-Iqmax)
+    dashed."""
+    plants = [str(g) for g in a["ibr_gen"]]
+    ip = np.asarray(a["ibr_Ip"], dtype=float)
+    iq = np.asarray(a["ibr_Iq"], dtype=float)
+    with np.errstate(all="ignore"):
+        swing = np.nan_to_num(np.nanmax(np.abs(ip - ip[:1]), axis=0))
+    named = list(np.argsort(-swing)[:n_named])
+    colors = ("tab:red", "tab:blue", "tab:green")
+    for ax, y, lim, what in (
+        (ax_p, ip, ("ibr_Ipmax", "ibr_LVPL"), "active current Ip"),
+        (ax_q, iq, ("ibr_Iqmax",), "reactive current Iq"),
+    ):
+        with np.errstate(all="ignore"):
+            ax.fill_between(
+                t, np.nanmin(y, axis=1), np.nanmax(y, axis=1), color="0.6",
+                alpha=0.3, lw=0, label=f"all {len(plants)} plants",
+            )  # fmt: skip
+        for c, i in zip(colors, named, strict=False):
+            ax.plot(t, y[:, i], lw=1.1, color=c, label=f"plant {plants[i]}")
+            for key in lim:
+                bound = np.asarray(a[key], dtype=float)[:, i]
+                bound = np.where(bound < 1e5, bound, np.nan)  # "no limit" not drawn
+                ax.plot(t, bound, lw=0.8, ls="--", color=c)
+                if key == "ibr_Iqmax":
+                    ax.plot(t, -bound, lw=0.8, ls="--", color=c)
+        ax.set_ylabel(f"{what} (pu machine base)\n(dashed: its limits)", fontsize=9)
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=7, loc="lower right")
 
 
 def plot_grid_compare(

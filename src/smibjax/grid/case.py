@@ -50,6 +50,8 @@ BUILTIN = {
     # issues 45, 46: Texas A&M's synthetic ACTIVSg2000 (ERCOT footprint) with its
     # dynamics, from NREL-Sienna/PowerSystemsTestData (cases/README.md)
     "activsg2000": ("activsg2000.raw", "activsg2000.dyr"),
+    # issue 47: NREL's reduced WECC 240-bus system with 37 renewable plants
+    "wecc240": ("wecc240.raw", "wecc240.dyr"),
 }
 
 # issue 46 (ACTIVSg2000): how built-in cases are read beyond the default. Its raw file
@@ -76,6 +78,9 @@ GOVERNORS += ("IEEEG1", "HYGOV", "IEESGO", "GAST")
 GOVERNORS += ("GGOV1",)  # issue 45 (GGOV1)
 SVCS = ("CSVGN1",)
 SUPPORTED = MACHINES + EXCITERS + STABILIZERS + GOVERNORS + SVCS
+# issue 47: inverter-based resources (converter, electrical and plant controllers)
+RENEWABLES = ("REGCA1", "REECB1", "REPCA1")
+SUPPORTED += RENEWABLES
 
 
 class CaseError(ParameterError):
@@ -270,6 +275,10 @@ def build_case(
             bus = np.asarray(gens.bus)[pos]
             params = [dict(r.params, MBASE=float(mbase[g])) for g, r in entries]
             svcs.append(_model_class(model).from_params(bus, params))
+    # issue 47: the renewables, one injector group
+    renewables = _renewables(system, by_model, f_base=system.f_base)
+    if renewables is not None:
+        have_machine |= {int(g) for g in np.asarray(renewables.gen)}
     for model in STABILIZERS + EXCITERS + GOVERNORS:
         entries = by_model.get(model, [])
         if not entries:
@@ -300,6 +309,7 @@ def build_case(
                 f"generator {gens.ident[k] if gens.ident else '1'!r} at bus {nb[k]} "
                 "is in service but has no machine record in the dyr file"
             )
+    extra = {} if renewables is None else {"injectors": (renewables,)}
     return Case(
         system=system,
         machines=tuple(machines),
@@ -307,6 +317,7 @@ def build_case(
         svcs=tuple(svcs),
         sources=tuple(sorted(sources)),
         name=name,
+        **extra,
     )
 
 
@@ -323,3 +334,56 @@ def andes_swing(case: Case) -> Case:
         for m in case.machines
     )
     return dataclasses.replace(case, machines=machines)
+
+
+# issue 47: inverter-based resources
+def _renewables(system, by_model, f_base):
+    """The `Renewable` injector group of the REGCA1 records (with their REECB1 and
+    REPCA1 records, by generator), or None. A REECB1 without its generator's
+    REGCA1, or a REPCA1 without its REECB1, is refused (one line)."""
+    from .devices.renewable import Renewable
+
+    conv = {g: r for g, r in by_model.get("REGCA1", [])}
+    elec = {}
+    for g, r in by_model.get("REECB1", []):
+        if g not in conv:
+            raise CaseError(
+                f"{r.file}:{r.line}: REECB1 for generator {r.ident!r} at bus {r.bus} "
+                "has no REGCA1 record (the converter it commands)"
+            )
+        elec[g] = r
+    plant = {}
+    for g, r in by_model.get("REPCA1", []):
+        if g not in elec:
+            raise CaseError(
+                f"{r.file}:{r.line}: REPCA1 for generator {r.ident!r} at bus {r.bus} "
+                "has no REECB1 record (the electrical controller it commands)"
+            )
+        plant[g] = r
+    if not conv:
+        return None
+    pos = sorted(conv)
+    gens = system.generators
+
+    def build(ps):
+        return Renewable.from_params(
+            gen=ps,
+            bus=np.asarray(gens.bus)[ps],
+            mbase=np.asarray(gens.mbase)[ps],
+            regc=[conv[g].params for g in ps],
+            reec=[elec[g].params if g in elec else None for g in ps],
+            repc=[plant[g].params if g in plant else None for g in ps],
+            f_base=f_base,
+        )
+
+    try:
+        return build(pos)
+    except ParameterError:
+        for g in pos:  # name the file and line of the record refused on its own
+            try:
+                build([g])
+            except ParameterError as one:
+                recs = [r for r in (conv[g], elec.get(g), plant.get(g)) if r]
+                r = next((r for r in recs if str(one).startswith(r.model)), recs[0])
+                raise ParameterError(f"{r.file}:{r.line}: {one}") from None
+        raise

@@ -538,13 +538,57 @@ def evaluate_all(case: Case, op: Operating, mats: StageMatrices, stage, y, u=Non
     di = []
     for k, (d, x, ref) in enumerate(zip(case.injectors, xi, op.inj_refs, strict=True)):
         vb = v_p[np.asarray(lay.injector_port[k], dtype=np.int64)]
-        dx = d.rhs(x, vb, ref, s_base)
+        if hasattr(d, "signals"):  # issue 47: a renewable's signals, recorded
+            sig = d.signals(x, vb, ref)
+            dx = sig["dx"]
+            meas = _ibr_measure(meas, sig, lay.injector_src[k], inj_on[k], vb)
+        else:
+            dx = d.rhs(x, vb, ref, s_base)
         di.append((jnp.reshape(dx, (-1, len(vb))) * inj_on[k]).reshape(jnp.shape(dx)))
     blocks = dm + dctrl + ds + di
     dy = jnp.concatenate([b.reshape(-1) for b in blocks]) if blocks else jnp.zeros(0)
     meas = meas | {"Efd": cmd["Efd"], "Pm": cmd["Pm"], "Vs": cmd["Vs"]}
     i_net = i_p if y_sh is None else i_p - y_sh * v_p
     return dy, meas, i_net, res
+
+
+# issue 47: what the renewables (`devices.renewable`) record, by generator position
+# (pu on the machine base; "Va" the terminal voltage's angle, rad); NaN at the
+# generators that are not renewables
+IBR_MEASUREMENTS = (
+    "Ip",
+    "Iq",
+    "Ipcmd",
+    "Iqcmd",
+    "LVPL",
+    "Ipmax",
+    "Iqmax",
+    "Qe",
+    "Pref",
+    "Qext",
+    "Va",
+)
+
+
+def has_renewables(case: Case) -> bool:
+    """Whether the case has renewables (an injector group with `signals`)."""
+    return any(hasattr(d, "signals") for d in case.injectors)
+
+
+def _ibr_measure(meas, sig, gens, on, vb):
+    """`meas` with a renewable group's signals written at its generators: Pe and Vt
+    (as a machine's), and `IBR_MEASUREMENTS` (zero current while tripped)."""
+    g = np.asarray(gens, dtype=np.int64)
+    n = meas["Pe"].shape[0]
+    meas = dict(meas)
+    for k in IBR_MEASUREMENTS:
+        if k not in meas:
+            meas[k] = jnp.full(n, jnp.nan)
+    vals = dict(sig, Va=jnp.angle(vb))
+    for k in ("Pe", "Vt", *IBR_MEASUREMENTS):
+        val = vals[k] * on if k in ("Pe", "Qe", "Ip", "Iq") else vals[k]
+        meas[k] = meas[k].at[g].set(val)
+    return meas
 
 
 def _rhs(case: Case, op: Operating, mats: StageMatrices, t_switch, t, y):

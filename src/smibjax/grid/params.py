@@ -46,6 +46,11 @@ def _groups(case: Case):
         yield ("machines", k), m, lay.machine_gen[k]
     for k, c in enumerate(case.controllers):
         yield ("controllers", k), c, lay.controller_gen[k]
+    # issue 47: a renewable's models (REGCA1, REECB1, REPCA1) by their PSS/E names,
+    # each a sub-module of the plant's injector group (`Renewable.parts`)
+    for k, d in enumerate(case.injectors):
+        for attr in getattr(d, "parts", {}).values():
+            yield ("injectors", k, attr), getattr(d, attr), tuple(int(i) for i in d.gen)
 
 
 def _locate(case: Case, name: str):
@@ -90,8 +95,10 @@ def set_params(case: Case, values: dict) -> Case:
         check = getattr(group2, "__check_init__", None)
         if check is not None:  # the checks a dyr file's values meet (concrete only)
             check()
-        kind, k = where
+        kind, k, *sub = where
         groups = list(getattr(case, kind))
+        if sub:  # issue 47: a sub-module of an injector group
+            group2 = eqx.tree_at(lambda d, a=sub[0]: getattr(d, a), groups[k], group2)
         groups[k] = group2
         case = eqx.tree_at(lambda c, kd=kind: getattr(c, kd), case, tuple(groups))
     return case

@@ -1535,6 +1535,95 @@ DYR_MODELS: dict[str, tuple[str, ...]] = {
         "Rup",
         "Rdown",
     ),
+    # --- issue 47: inverter-based resources (WECC second-generation renewable
+    # models, PSS/E 33 Model Library; the ICONs first, as PSS/E writes them, in the
+    # order of ANDES 2.0's andes/io/psse-dyr.yaml)
+    "REGCA1": (
+        "LVPLSW",
+        "Tg",
+        "Rrpwr",
+        "Brkpt",
+        "Zerox",
+        "Lvpl1",
+        "Volim",
+        "Lvpnt1",
+        "Lvpnt0",
+        "Iolim",
+        "Tfltr",
+        "Khv",
+        "Iqrmax",
+        "Iqrmin",
+        "Accel",
+    ),
+    "REECB1": (
+        "BUSR",
+        "PFFLAG",
+        "VFLAG",
+        "QFLAG",
+        "PQFLAG",
+        "Vdip",
+        "Vup",
+        "Trv",
+        "dbd1",
+        "dbd2",
+        "Kqv",
+        "Iqh1",
+        "Iql1",
+        "Vref0",
+        "Tp",
+        "Qmax",
+        "Qmin",
+        "Vmax",
+        "Vmin",
+        "Kqp",
+        "Kqi",
+        "Kvp",
+        "Kvi",
+        "Tiq",
+        "dPmax",
+        "dPmin",
+        "Pmax",
+        "Pmin",
+        "Imax",
+        "Tpord",
+    ),
+    "REPCA1": (
+        "IREG",
+        "BRCH_FROM",
+        "BRCH_TO",
+        "CKT",
+        "VCFlag",
+        "RefFlag",
+        "Fflag",
+        "Tfltr",
+        "Kp",
+        "Ki",
+        "Tft",
+        "Tfv",
+        "Vfrz",
+        "Rc",
+        "Xc",
+        "Kc",
+        "emax",
+        "emin",
+        "dbd1",
+        "dbd2",
+        "Qmax",
+        "Qmin",
+        "Kpg",
+        "Kig",
+        "Tp",
+        "fdbd1",
+        "fdbd2",
+        "femax",
+        "femin",
+        "Pmax",
+        "Pmin",
+        "Tlag",
+        "Ddn",
+        "Dup",
+    ),
+    # --- end of issue 47's inverter-based resources
 }
 """The dyr models read, each with its parameter names in the order of the dyr record
 (the PSS/E CON order; IEEEST's two ICONs, the input signal code ICS and the remote bus
@@ -1594,6 +1683,12 @@ DYR_KINDS: dict[str, str] = {
     "PSS2B": "pss",
     # issue 45 (GGOV1)
     "GGOV1": "governor",
+    # --- issue 47: inverter-based resources. REGCA1 is the generator's machine
+    # record (the converter); the electrical and plant controllers sit on it
+    "REGCA1": "machine",
+    "REECB1": "renewable electrical control",
+    "REPCA1": "plant controller",
+    # --- end of issue 47's inverter-based resources
 }
 """What each dyr model is to its generator: a machine (one per generator in service),
 or an exciter, a load compensator, a stabilizer (pss) or a governor (at most one
@@ -1707,6 +1802,10 @@ def _count(lines: list, noun: str) -> str:
     return f"{len(lines)} {noun}{'s' if len(lines) != 1 else ''}"
 
 
+# issue 47: dyr fields that are text, not numbers (REPCA1's branch circuit id)
+_TEXT_FIELDS = {("REPCA1", "CKT")}
+
+
 def _dyr_record(toks, quoted, name, line):
     """The DyrRecord of one record's tokens, or the model name as written (an
     unsupported model), or "TOGGLE" (ANDES's Toggle record)."""
@@ -1739,6 +1838,9 @@ def _dyr_record(toks, quoted, name, line):
         )
     params = {}
     for n, v in zip(names, values, strict=True):
+        if (model, n) in _TEXT_FIELDS:  # issue 47: a circuit id is text
+            params[n] = str(v).strip()
+            continue
         try:
             params[n] = _number(v, "f")
         except ValueError:

@@ -28,7 +28,14 @@ from .._options import SolverOptions
 from .._solve import adaptive_solve
 from .._validate import ParameterError
 from .events import check_events, switch_times
-from .loop import Case, Operating, evaluate, network_residual, vector_field
+from .loop import (
+    IBR_MEASUREMENTS,
+    Case,
+    Operating,
+    evaluate,
+    network_residual,
+    vector_field,
+)
 from .network import COLLAPSE_TOL, stage_configs, stage_matrices
 from .trajectory import GridTrajectory, angle_spread, coi_angles, coi_weights
 
@@ -204,6 +211,7 @@ def _record(case, op, mats, t_sw, ts, ys, stopped, t_last, sol, y_last):
     meas, vbus = jax.lax.fori_loop(0, n_stage, stage_pass, acc0)
     nan = jnp.where(valid, 0.0, jnp.nan)[:, None]
     pick = {k: meas[k] + nan for k in ("delta", "omega", "Efd", "Pm", "Pe", "Vt", "Vs")}
+    ibr = {k: meas[k] + nan for k in IBR_MEASUREMENTS if k in meas}  # issue 47
     return dict(
         ts=ts,
         delta=pick["delta"],
@@ -219,6 +227,7 @@ def _record(case, op, mats, t_sw, ts, ys, stopped, t_last, sol, y_last):
         exhausted=sol.result == dfx.RESULTS.max_steps_reached,
         n_steps=sol.stats["num_accepted_steps"],
         y_final=y_last,
+        ibr=ibr,
     )
 
 

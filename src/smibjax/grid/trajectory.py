@@ -50,6 +50,10 @@ class GridTrajectory(eqx.Module):
     delta_ref: Float[Array, " n_gen"]
     collapsed: Bool[Array, ""]
     t_collapse: Float[Array, ""]
+    # issue 47: the renewables' signals per generator (`loop.IBR_MEASUREMENTS`: Ip,
+    # Iq, Ipcmd, Iqcmd, LVPL, Ipmax, Iqmax, Qe, Pref, Qext (pu machine base), Va
+    # (rad)), NaN at other generators; empty without renewables
+    ibr: dict = eqx.field(default_factory=dict)
 
 
 def coi_weights(case: Case, gen_status) -> Float[Array, " n_gen"]:
