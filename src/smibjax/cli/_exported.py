@@ -220,7 +220,8 @@ def _grid_program(case, vm, va, p_gen, q_gen, events, t_first, **options):
     op = initialize(case, vm, va, p_gen, q_gen)
     tr = simulate_case(case, op, events, **options)
     m = grid_metrics(case, tr, t_first)
-    out = {f"traj.{k}": getattr(tr, k) for k in tr.__dataclass_fields__}
+    out = {f"traj.{k}": getattr(tr, k) for k in tr.__dataclass_fields__ if k != "ibr"}
+    out |= {f"ibr.{k}": v for k, v in tr.ibr.items()}  # the renewables' signals
     fields = [k for k in m.__dataclass_fields__ if getattr(m, k) is not None]
     out |= {f"metrics.{k}": getattr(m, k) for k in fields}
     return out | {"rest.dy0": rest_residual(case, op)}
@@ -261,5 +262,6 @@ def run_grid(case, pf, events, t_first: float, before_trace=None, **options):
     part = lambda tag: {  # noqa: E731
         k.split(".", 1)[1]: v for k, v in out.items() if k.startswith(tag)
     }
-    traj, metrics = GridTrajectory(**part("traj.")), GridMetrics(**part("metrics."))
+    traj = GridTrajectory(**part("traj."), ibr=part("ibr."))
+    metrics = GridMetrics(**part("metrics."))
     return traj, metrics, out["rest.dy0"]
