@@ -14,7 +14,7 @@ REPCA1 (the WECC 240-bus case's parameters, with REPCA1 in voltage control: RefF
 = 0 in PSS/E's diagram but which ANDES 2.0's REECB1 needs to initialize: its Q PI
 starts at 0, clamped to VMIN otherwise). A three-phase fault at bus 4 through xf =
 1e-2 pu from 1.0 s to 1.05 s, 10 s, constant-impedance loads (ANDES's TDS default),
-the power flow to 1e-12, TDS trapezoid at a fixed 1 ms step, tol 1e-8. The file
+the power flow to 1e-12, TDS trapezoid at a fixed 5 ms step, tol 1e-8. The file
 holds t (s) on a 10 ms grid, the rotor angles of the four GENROU (rad, ANDES's order
 and bus numbers), every bus's voltage magnitude (pu) and angle (rad), the REGCA1's P
 and Q (pu, system base), and the settings.
@@ -31,7 +31,7 @@ ROOT = HERE.parents[2]
 OUT = HERE / "ieee14_renewable.npz"
 RAW = ROOT / "src" / "smibjax" / "grid" / "cases" / "ieee14.raw"
 DYR = HERE / "ieee14_renewable.dyr"
-TSTEP, TOL, XF, BUS, T_ON, T_OFF, T_END = 1e-3, 1e-8, 1e-2, 4, 1.0, 1.05, 10.0
+TSTEP, TOL, XF, BUS, T_ON, T_OFF, T_END = 5e-3, 1e-8, 1e-2, 4, 1.0, 1.05, 10.0
 
 
 def main() -> None:
