@@ -221,7 +221,9 @@ def compiled_grad(cfg):
 # machines s): measured on WECC 179 (29 machines, 650 states) on the loaded 2-core
 # machine, 2026-12-03: the held-out validation (forward runs, vmapped) 65 s, the
 # modal gradient (power flow, Jacobian, eigenvalues at every load factor, vmapped)
-# 69 s, the time-domain gradient (reverse mode through the adaptive solver) TD s
+# 69 s; the time-domain gradient (reverse mode through the adaptive solver, 4 faults
+# of 6 s) had not finished compiling after 13 min wall at load 10-14, so its factor
+# (6) is a lower bound, not a measurement
 PHASE_FACTORS = {"validation": 2.0, "modal": 2.0, "time_domain": 6.0}
 
 
