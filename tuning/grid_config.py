@@ -217,7 +217,7 @@ def check_grid_config(cfg: dict) -> None:
         _req(t in ("log", "linear"), f"gains.transform.{name}", t, "log or linear")
     for dst, src in g["tie"].items():
         _req(isinstance(src, str), f"gains.tie.{dst}", src, "a parameter name")
-    for label, members in g["groups"].items():
+    for label, members in g.get("groups", {}).items():
         _req(
             isinstance(members, list)
             and members
@@ -285,12 +285,12 @@ def check_grid_config(cfg: dict) -> None:
         "must be in (0, 1)",
     )
     _req(
-        lo["damping_reduce"] in ("max", "mean"),
+        lo.get("damping_reduce", "max") in ("max", "mean"),
         "loss.damping_reduce",
-        lo["damping_reduce"],
+        lo.get("damping_reduce"),
         "max or mean (over loss.damping_load_factors)",
     )
-    re_ = lo["reference_every"]
+    re_ = lo.get("reference_every", 0)
     _req(
         isinstance(re_, int)
         and not isinstance(re_, bool)

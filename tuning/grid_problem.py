@@ -167,18 +167,10 @@ def _base_name(name: str) -> str:
 
 
 def _start(case, name: str) -> float:
+    """The start value of a trained name (its first device's)."""
     from smibjax.grid.params import get_param
 
-    vals = np.asarray(get_param(case, name))
-    if len(set(vals.tolist())) > 1:  # a shared value over devices that differ
-        from smibjax.grid.params import ParamError
-
-        raise ParamError(
-            f"{name} is trained as one value but its devices differ "
-            f"({', '.join(f'{v:g}' for v in vals)}): name the devices "
-            "(per_device = true) or set one value in case.set"
-        )
-    return float(vals[0])
+    return float(np.asarray(get_param(case, name))[0])
 
 
 def _groups(case, gcfg: dict):
@@ -580,7 +572,8 @@ def damping_term(problem: GridProblem, raw, refs):
         )
 
     terms, zmin = jax.vmap(one)(jnp.asarray(lfs, dtype=jnp.float64), lam_ref, mask)
-    red = jnp.mean if problem.cfg["loss"]["damping_reduce"] == "mean" else jnp.max
+    reduce = problem.cfg["loss"].get("damping_reduce", "max")
+    red = jnp.mean if reduce == "mean" else jnp.max
     return red(terms), jnp.min(zmin)
 
 

@@ -332,7 +332,7 @@ def run_grid(
                 f"({row['seconds']:.1f} s)",
                 file=sys.stderr,
             )
-        ref_every = int(cfg["loss"]["reference_every"])
+        ref_every = int(cfg["loss"].get("reference_every", 0))
         if ref_every and (k + 1) % ref_every == 0 and (k + 1) % every:
             refs = reference(problem, raw)
         if (k + 1) % every == 0 or k + 1 == steps:
