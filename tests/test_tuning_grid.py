@@ -219,7 +219,9 @@ def test_tuned_dyr_round_trips(tiny_run, tmp_path):
     assert np.max(np.abs(np.asarray(runs[2].vs) - np.asarray(runs[0].vs))) > 1e-4
 
 
-@pytest.mark.parametrize("config", ["kundur_pss.toml", "ieee39_pss.toml"])
+@pytest.mark.parametrize(
+    "config", ["kundur_pss.toml", "ieee39_pss.toml", "wecc179_pss.toml"]
+)
 def test_shipped_configs_tuned_dyr_round_trips(config, tmp_path):
     """The shipped configs' tuned.dyr (the tuner's `_gains` and `tuned_dyr` on
     values moved off the start, no run): the built-in case's dyr file with every
@@ -240,6 +242,7 @@ def test_shipped_configs_tuned_dyr_round_trips(config, tmp_path):
     problem = SimpleNamespace(case=case, space=space)
     moved = space.to_raw(
         space.start * (1 + 0.1 * np.sqrt(np.arange(1, len(space.names) + 1)))
+        + 0.01 * (space.start == 0)  # WECC's switched-off stabilizers (K1 = 0)
     )
     gains = _gains(cfg, problem, moved)
     ties = {f for f, _ in space.tie}
@@ -369,6 +372,18 @@ BAD = [
         "train.max_steps = 1000000000000 is not allowed: must be an integer in "
         "[1, 1e+08]",
     ),
+    # issue 48: bounds outside the parameter's meaning, a tie across models
+    (
+        ('"IEEEST.KS" = [0.5, 50.0]', '"IEEEST.KS" = [-0.5, 50.0]'),
+        "IEEEST[1:1].KS is a gain on the speed deviation, which damps only >= 0",
+    ),
+    (
+        (
+            'names = ["IEEEST.KS", "IEEEST.T1", "IEEEST.T3"]',
+            'names = ["IEEEST.KS"]\ngroups = { g = ["IEEEST[1:1].T1", "SEXS[1:1].K"] }',
+        ),
+        "a tie across models or parameters",
+    ),
 ]
 
 
@@ -463,3 +478,233 @@ def test_seeds_are_checked_with_the_config(tmp_path, path, value):
     table[last] = value
     with pytest.raises(ParameterError, match=rf"^{path} = .* is not allowed: must be"):
         check_grid_config(cfg)
+
+
+# issue 48: every stabilizer model tunable, bounds from the model's meaning, groups,
+# the modal-only loss, the WECC 179 config
+
+
+def _space(case, names, bounds=None, **kw):
+    from tuning.grid_problem import make_space
+
+    return make_space(
+        case,
+        {
+            "names": names,
+            "per_device": kw.get("per_device", True),
+            "bounds": bounds or {},
+            "transform": kw.get("transform", {}),
+            "tie": kw.get("tie", {}),
+            "groups": kw.get("groups", {}),
+        },
+    )
+
+
+MEANING_BAD = [
+    # (names, bounds, groups, message)
+    (["ST2CUT.K1"], {"ST2CUT.K1": [-1.0, 30.0]}, {}, "gain on the speed deviation"),
+    # switched off in the case (K1 = 0): the speed input alone fixes the side
+    (
+        ["ST2CUT[10:1].K1"],
+        {"ST2CUT[10:1].K1": [-5.0, 0.0]},
+        {},
+        "ST2CUT[10:1].K1 is a gain on the speed deviation",
+    ),
+    # switched off and on electrical power: either side, but not across 0
+    (
+        ["ST2CUT[42:1].K1"],
+        {"ST2CUT[42:1].K1": [-5.0, 5.0]},
+        {},
+        "its bounds must be on one side of 0",
+    ),
+    (
+        ["IEEEST.KS"],
+        {"IEEEST.KS": [-5.0, 5.0]},
+        {},
+        "gain of sign fixed by the case (start -2): its bounds must be <= 0",
+    ),
+    (
+        ["ST2CUT.T6"],
+        {"ST2CUT.T6": [0.0, 15.0]},
+        {},
+        "is a time constant (s): lower bound > 0",
+    ),
+    (["ST2CUT.ICS1"], {}, {}, "is an input code, remote bus or filter order"),
+    (["IEEEST.LSMIN"], {"IEEEST.LSMIN": [-1.0, 1.0]}, {}, "(a lower limit) must be"),
+    (["ST2CUT[5:1].T7"], {}, {}, "ST2CUT[5:1].T7 = 0 in the case: the time constant"),
+    (["EXST1.VIMAX"], {}, {}, "is not a tunable parameter of EXST1"),
+    (
+        ["IEEEST.T4"],
+        {},
+        {"g": ["ST2CUT[5:1].K1", "IEEEST[3:1].KS"]},
+        "a tie across models or parameters",
+    ),
+    (
+        ["ST2CUT.K1"],
+        {"ST2CUT.K1": [0.0, 30.0]},
+        {"g": ["ST2CUT[5:1].K1", "ST2CUT[8:1].K1"]},
+        "ST2CUT[5:1].K1 is also trained on its own",
+    ),
+    (["IEEEST.KQ"], {}, {}, "IEEEST has no parameter 'KQ'"),
+    (["PSS2A.KS1"], {}, {}, "the case has no PSS2A"),
+]
+
+
+@pytest.mark.parametrize(
+    "names,bounds,groups,message", MEANING_BAD, ids=[m[3] for m in MEANING_BAD]
+)
+def test_bounds_outside_the_meaning_are_refused(names, bounds, groups, message):
+    """On WECC 179 (speed-input ST2CUTs, power-input IEEEST with KS = -2): a speed
+    gain allowed below 0, a gain's bounds across 0 against the case's sign, a time
+    constant allowed to reach 0, an input code, a lower limit above 0, a time
+    constant the case has at 0 (its block is absent), a limit that is not a gain or
+    time constant, a group across models, a group member also trained alone, a
+    parameter the model lacks, a model the case lacks: one line each."""
+    from smibjax import ParameterError
+    from smibjax.grid.case import load_case
+
+    case = load_case("wecc179")
+    with pytest.raises(ParameterError) as e:
+        _space(case, names, bounds, groups=groups)
+    assert message in str(e.value)
+    assert len(str(e.value).splitlines()) == 1
+
+
+def test_every_stabilizer_model_has_a_meaning_for_every_parameter():
+    """Each stabilizer model's dyr parameters (PSS/E CONs and ICONs) all have a kind
+    in `grid_bounds.MEANING` (none falls to 'not tunable' by omission), and the SVC's
+    gain and time constants too."""
+    from smibjax.grid.case import STABILIZERS
+    from smibjax.grid.psse import DYR_MODELS
+    from tuning.grid_bounds import MEANING, kind_of
+
+    for model in STABILIZERS:
+        assert set(MEANING[model]) == set(DYR_MODELS[model]), model
+    assert kind_of("CSVGN1", "K") == ("gain", "positive")
+    assert kind_of("CSVGN1", "T5") == ("time", None)
+    assert kind_of("SEXS", "K") == ("gain", None)
+    assert kind_of("TGOV1", "R") is None  # no meaning table: the plain checks
+
+
+def test_groups_signed_log_and_skipped_blocks():
+    """WECC 179: a group of three ST2CUT gains is one trained value the others
+    follow; a negative gain (IEEEST's KS = -2 on power) takes a signed log
+    transform that round-trips and projects into its bounds; a group name skips
+    the devices whose time constant is 0 (ST2CUT T9 exists at 10 of 25)."""
+    from smibjax.grid.case import load_case
+    from smibjax.grid.params import get_param, set_params
+
+    case = load_case("wecc179")
+    sp = _space(
+        case,
+        ["IEEEST.KS", "ST2CUT.T9"],
+        {"IEEEST.KS": [-20.0, -0.1]},
+        groups={"g": ["ST2CUT[8:1].K1", "ST2CUT[12:1].K1", "ST2CUT[14:1].K1"]},
+    )
+    assert len([n for n in sp.names if n.endswith(".T9")]) == 10
+    assert len([n for n in sp.skipped if n.endswith(".T9")]) == 15
+    assert sp.names[-1] == "ST2CUT[8:1].K1"
+    assert dict(sp.tie) == {
+        "ST2CUT[12:1].K1": "ST2CUT[8:1].K1",
+        "ST2CUT[14:1].K1": "ST2CUT[8:1].K1",
+    }
+    k = sp.names.index("IEEEST[3:1].KS")
+    assert sp.transforms[k] == "log" and sp.signs[k] == -1
+    raw = sp.to_raw(sp.start)
+    assert float(raw["IEEEST[3:1].KS"]) == pytest.approx(math.log(2.0))
+    raw = {**raw, "IEEEST[3:1].KS": jnp.asarray(5.0), "ST2CUT[8:1].K1": jnp.log(4.0)}
+    vals = sp.values(sp.project(raw))
+    assert float(vals["IEEEST[3:1].KS"]) == pytest.approx(-20.0)  # clipped to -20
+    tuned = set_params(case, {n: float(v) for n, v in vals.items()})
+
+    def k1(g):
+        return float(get_param(tuned, f"ST2CUT[{g}:1].K1")[0])
+
+    assert [k1(8), k1(12), k1(14)] == pytest.approx([4.0, 4.0, 4.0])
+    assert (k1(5), k1(10), k1(35)) == (5.5, 0.0, 10.0)  # the others untouched
+
+
+MODAL = (
+    TINY.replace("[loss]\n", "[loss]\nsettling = 0.0\nitae = 0.0\novershoot = 0.0\n")
+    .replace("[loss]\n", "[loss]\neffort = 0.0\nunstable = 0.0\n")
+    .replace(
+        "damping_load_factors = [0.9, 1.1]",
+        'damping_load_factors = [0.9, 1.1]\ndamping_reduce = "mean"',
+    )
+)
+
+
+def test_modal_only_loss_and_its_gradient(tmp_path):
+    """Every time-domain weight 0: the loss is 100 x the mean over the load factors
+    of the squared hinge sum over the electromechanical modes, equal to the hinge
+    computed from `smibjax modes`' concrete classification (NumPy eigenvalues), and
+    no fault is simulated (stable is NaN); its gradient with respect to log KS and
+    log T1 (through the power flow, the Jacobian and the eigenvalues, both load
+    factors in one vmapped program) against central differences."""
+    from smibjax.grid.modes import linearize, modes
+    from smibjax.grid.operating import operating_point
+    from tuning.grid_problem import reference
+    from tuning.grid_run import compiled_grad
+
+    cfg = load_grid_config(_config(tmp_path, MODAL))
+    check_grid_config(cfg)
+    problem, grad = compiled_grad(cfg)
+    raw0 = problem.space.to_raw(problem.space.start)
+    refs = reference(problem, raw0)
+    events, lfs = problem.batch(0)
+    (val, info), g = grad(raw0, events, lfs, refs)
+    assert math.isnan(float(info["stable"]))
+    hinge = []
+    for lf in (0.9, 1.1):
+        op, _ = operating_point(problem.case, lf, lf)
+        ms = modes(problem.case, linearize(problem.case, op, inputs=(), outputs=()))
+        z = [m.damping for m in ms if m.kind == "electromechanical"]
+        assert z
+        hinge.append(sum(max(0.0, 0.3 - x) ** 2 for x in z))
+    assert float(val) == pytest.approx(100 * np.mean(hinge), rel=1e-9)
+    assert float(val) > 0.1
+    h = 1e-4
+    for name in ("IEEEST[1:1].KS", "IEEEST[1:1].T1"):
+
+        def at(dx, name=name):
+            r = dict(raw0)
+            r[name] = raw0[name] + dx
+            return float(grad(r, events, lfs, refs)[0][0])
+
+        fd = (at(h) - at(-h)) / (2 * h)
+        assert abs(float(g[name])) > 1e-3, name
+        assert float(g[name]) == pytest.approx(fd, rel=1e-4), name
+
+
+def test_wecc179_config_validates():
+    """tuning/configs/wecc179_pss.toml: the schema and every gain's bounds against
+    its meaning on WECC 179; all 29 stabilizers' gains trained, the 7 negative ones
+    (power input) with the signed log."""
+    from tuning.grid_problem import load_case_from, make_space
+
+    cfg = load_grid_config(ROOT / "tuning/configs/wecc179_pss.toml")
+    check_grid_config(cfg)
+    case = load_case_from(cfg)
+    space = make_space(case, cfg["gains"])
+    assert len(space.names) == 29
+    assert all(n.endswith((".KS", ".K1")) for n in space.names)
+    pairs = zip(space.transforms, space.signs, strict=True)
+    assert sum(t == "log" and s < 0 for t, s in pairs) == 7
+    assert not any(cfg["loss"][k] for k in ("settling", "itae", "overshoot"))
+    assert cfg["loss"]["damping_load_factors"] == [0.9, 1.0, 1.1]
+
+
+def test_exciter_gains_are_tunable_within_their_meaning_svc_refused():
+    """The tiny case's SEXS: K (50) and TE take the log transform; its limit EMAX is
+    not tunable; the SVC (CSVGN1, a shunt device at a bus) is refused in one line
+    (parameter names address a generator's devices only)."""
+    from smibjax import ParameterError
+    from smibjax.grid.case import load_case
+
+    case = load_case(RAW, DYR)
+    sp = _space(case, ["SEXS.K", "SEXS.TE"])
+    assert sp.transforms == ("log", "log")
+    with pytest.raises(ParameterError, match="EMAX is not a tunable parameter"):
+        _space(case, ["SEXS.EMAX"])
+    with pytest.raises(ParameterError, match="CSVGN1 is a shunt device at a bus"):
+        _space(case, ["CSVGN1.K"])

@@ -11,8 +11,10 @@ The tables (docs/tuning-grid.md has the full description):
 - `[gains]`: `names`, the parameters to train (`MODEL.PARAM`: every device of the
   model, expanded to one trained value per device when `per_device`, or one value
   shared by all of them; `MODEL[BUS:ID].PARAM`: one device); `bounds` and `transform`
-  (`log` or `linear`) by name; `tie`: parameters that follow a trained one
-  (`"IEEEST.T5" = "IEEEST.T6"`: each device's T5 equals its T6);
+  (`log` or `linear`) by name, the bounds checked against the parameter's meaning
+  (`tuning.grid_bounds`); `tie`: parameters that follow a trained one
+  (`"IEEEST.T5" = "IEEEST.T6"`: each device's T5 equals its T6); `groups`: named
+  lists of device parameters of one model trained as one value;
 - `[scenarios]`: the fault distribution (`smibjax.grid.scenarios.FaultDistribution`
   fields) and `load_factor`, the range of the load (and non-slack generation) factor
   drawn per scenario; the power flow is re-solved for every scenario;
@@ -43,6 +45,7 @@ GRID_DEFAULTS: dict = {
         "bounds": {},
         "transform": {},
         "tie": {},
+        "groups": {},
     },
     "scenarios": {
         "kind": "bus",
@@ -71,6 +74,8 @@ GRID_DEFAULTS: dict = {
         "damping": 100.0,
         "target_damping": 0.15,
         "damping_load_factors": [0.8, 1.0, 1.2],
+        "damping_reduce": "max",
+        "reference_every": 0,
         "unstable": 20.0,
         "band_angle": 0.01,
         "band_speed": 1e-4,
@@ -92,6 +97,7 @@ _FREE = {
     ("gains", "bounds"),
     ("gains", "transform"),
     ("gains", "tie"),
+    ("gains", "groups"),
 }
 
 
@@ -211,6 +217,15 @@ def check_grid_config(cfg: dict) -> None:
         _req(t in ("log", "linear"), f"gains.transform.{name}", t, "log or linear")
     for dst, src in g["tie"].items():
         _req(isinstance(src, str), f"gains.tie.{dst}", src, "a parameter name")
+    for label, members in g.get("groups", {}).items():
+        _req(
+            isinstance(members, list)
+            and members
+            and all(isinstance(m, str) for m in members),
+            f"gains.groups.{label}",
+            members,
+            "must be a list of parameter names (MODEL.PARAM or MODEL[BUS:ID].PARAM)",
+        )
     s = cfg["scenarios"]
     _req(s["kind"] in ("bus", "line"), "scenarios.kind", s["kind"], "bus or line")
     _req(
@@ -268,6 +283,28 @@ def check_grid_config(cfg: dict) -> None:
         "loss.target_damping",
         lo["target_damping"],
         "must be in (0, 1)",
+    )
+    _req(
+        lo.get("damping_reduce", "max") in ("max", "mean"),
+        "loss.damping_reduce",
+        lo.get("damping_reduce"),
+        "max or mean (over loss.damping_load_factors)",
+    )
+    re_ = lo.get("reference_every", 0)
+    _req(
+        isinstance(re_, int)
+        and not isinstance(re_, bool)
+        and re_ >= 0
+        and (
+            re_ == 0
+            or isinstance(v["every"], int)
+            and v["every"] >= 1
+            and v["every"] % re_ == 0
+        ),
+        "loss.reference_every",
+        re_,
+        "an integer >= 0 dividing validation.every (0: refresh the reference modes "
+        "at the validations only)",
     )
     for key, lfs in (
         ("loss.damping_load_factors", lo["damping_load_factors"]),

@@ -217,6 +217,52 @@ def compiled_grad(cfg):
     return _CACHE[key][0], _CACHE[key][3]
 
 
+# expected first compiles, as multiples of `smibjax.cli.grid.compile_s` (a + b *
+# machines s): measured on WECC 179 (29 machines, 650 states) on the loaded 2-core
+# machine, 2026-12-03: the held-out validation (forward runs, vmapped) 65 s, the
+# modal gradient (power flow, Jacobian, eigenvalues at every load factor, vmapped)
+# 69 s; the time-domain gradient (reverse mode through the adaptive solver, 4 faults
+# of 6 s) had not finished compiling after 13 min wall at load 10-14, so its factor
+# (6) is a lower bound, not a measurement
+PHASE_FACTORS = {"validation": 2.0, "modal": 2.0, "time_domain": 6.0}
+
+
+def _say_phase(problem, which: str) -> None:
+    """The phase line (stderr) before a first compile: `which` = "validation" or
+    "step"; what compiles, and about how long."""
+    from smibjax.cli.grid import _size, compile_s, say_phase
+
+    from .grid_problem import TERMS
+
+    case, cfg = problem.case, problem.cfg
+    lc = cfg["loss"]
+    lfs = ", ".join(f"{x:g}" for x in lc["damping_load_factors"])
+    v = cfg["validation"]
+    if which == "validation":
+        say_phase(
+            f"the held-out validation of {_size(case)}: {v['n']} faults of "
+            f"{v['t_end']:g} s in one vmapped program",
+            "jit_run",
+            compile_s(case, PHASE_FACTORS["validation"]),
+        )
+        return
+    if not any(lc[k] for k in TERMS if k != "damping"):
+        say_phase(
+            f"the training step (the modal gradient at load factors {lfs}, one "
+            "vmapped program; no fault simulated: every time-domain weight is 0)",
+            "jit_value_and_grad",
+            compile_s(case, PHASE_FACTORS["modal"]),
+        )
+    else:
+        say_phase(
+            f"the training step ({cfg['batch']} faults of {cfg['train']['t_end']:g}"
+            f" s in reverse mode, vmapped, and the modal gradient at load factors "
+            f"{lfs})",
+            "jit_value_and_grad",
+            compile_s(case, PHASE_FACTORS["modal"] + PHASE_FACTORS["time_domain"]),
+        )
+
+
 def run_grid(
     cfg: dict,
     out: Path,
@@ -243,6 +289,8 @@ def run_grid(
     every = int(cfg["validation"]["every"])
     steps = int(cfg["steps"])
     held = _held_out(problem)
+    if not quiet:
+        _say_phase(problem, "validation")
     if resume:
         state = load_checkpoint(out, problem.opt, raw0)
     else:
@@ -262,6 +310,8 @@ def run_grid(
     while state.step < steps:
         k = state.step
         events, lfs = problem.batch(k)
+        if done == 0 and not quiet:
+            _say_phase(problem, "step")
         t0 = time.perf_counter()
         raw, opt_state, val, info, gn, skipped = step_fn(
             state.raw, state.opt_state, events, lfs, refs
@@ -282,6 +332,9 @@ def run_grid(
                 f"({row['seconds']:.1f} s)",
                 file=sys.stderr,
             )
+        ref_every = int(cfg["loss"].get("reference_every", 0))
+        if ref_every and (k + 1) % ref_every == 0 and (k + 1) % every:
+            refs = reference(problem, raw)
         if (k + 1) % every == 0 or k + 1 == steps:
             v = validate(problem, raw, val_fn, held)
             state = record_validation(out, state, v, lambda a, b: _better(a, b, target))
@@ -554,6 +607,14 @@ def _report(
                 else:
                     cells.append("")
             lines.append(f"| {mb['load_factor']:g} | {cells[0]} | {cells[1]} |")
+    lines += ["", "Worst electromechanical damping ratio per load factor:", ""]
+    for mb, ma in zip(modes_before, modes_after, strict=True):
+        zb = min((d["damping"] for d in mb["modes"]), default=math.nan)
+        za = min((d["damping"] for d in ma["modes"]), default=math.nan)
+        lines.append(
+            f"- load factor {mb['load_factor']:g}: start {_fmt(zb, '.4f')}, tuned "
+            f"{_fmt(za, '.4f')} ({len(ma['modes'])} modes)"
+        )
     lines += [
         "",
         "## Reference fault: physics",
@@ -593,6 +654,13 @@ def _report(
         )
     for f, lead in sp.tie:
         lines.append(f"| {f} | (follows {lead}) | {float(tuned[f]):.4g} | | |")
+    if sp.skipped:
+        lines += [
+            "",
+            "Not trained (0 in the case: a block the device does not have): "
+            + ", ".join(sp.skipped)
+            + ".",
+        ]
     if rewrite is not None:
         lines += _dyr_table(rewrite, case_dyr(cfg).name)
     return "\n".join(lines) + "\n"
