@@ -43,7 +43,6 @@ from ._blocks import (
     _safe,
     build_group,
     check,
-    fex,
     lag,
     leadlag,
     nonneg,
@@ -55,8 +54,7 @@ from ._blocks import (
     require_at_rest,
 )
 from .base import AbstractController, f64, i64
-from .exac1 import exciter_saturation_rule, ve_at_rest
-from .ieeex1 import saturation_coefficients
+from .exac1 import ac_efd, ac_se_ve, ac_vfe, exciter_saturation_rule, ve_at_rest
 
 __all__ = ["ESAC6A", "leadlag_nonwindup"]
 
@@ -125,18 +123,15 @@ class ESAC6A(AbstractController):
 
     def se_ve(self, ve):
         """SE(VE) VE (pu): PSS/E's quadratic exciter saturation."""
-        A, B = saturation_coefficients(self.E1, self.SE1, self.E2, self.SE2)
-        return B * jnp.maximum(ve - A, 0.0) ** 2
+        return ac_se_ve(self, ve)
 
     def vfe(self, ve, ifd):
         """VFE = KD XadIfd + KE VE + SE(VE) VE (pu)."""
-        return self.KD * ifd + self.KE * ve + self.se_ve(ve)
+        return ac_vfe(self, ve, ifd)
 
     def efd(self, ve, ifd):
         """Efd = VE FEX(KC XadIfd / VE) (pu)."""
-        safe = jnp.where(ve > 0, ve, 1.0)
-        i_n = jnp.where(ve > 0, self.KC * ifd / safe, 2.0)
-        return jnp.where(ve > 0, ve, 0.0) * fex(i_n)
+        return ac_efd(self, ve, ifd)
 
     def _vh(self, xh, vfe):
         """(VH, dx_h/dt): the field current limiter."""

@@ -98,6 +98,25 @@ def exciter_saturation_rule():
     )
 
 
+def ac_se_ve(dev, ve):
+    """SE(VE) VE (pu): an AC exciter's saturation, PSS/E's quadratic curve through
+    `dev`'s (E1, SE1), (E2, SE2)."""
+    A, B = saturation_coefficients(dev.E1, dev.SE1, dev.E2, dev.SE2)
+    return B * jnp.maximum(ve - A, 0.0) ** 2
+
+
+def ac_vfe(dev, ve, ifd):
+    """VFE = KD XadIfd + KE VE + SE(VE) VE (pu): an AC exciter's field demand."""
+    return dev.KD * ifd + dev.KE * ve + ac_se_ve(dev, ve)
+
+
+def ac_efd(dev, ve, ifd):
+    """Efd = VE FEX(KC XadIfd / VE) (pu): the rectified output (0 where VE <= 0)."""
+    safe = jnp.where(ve > 0, ve, 1.0)
+    i_n = jnp.where(ve > 0, dev.KC * ifd / safe, 2.0)
+    return jnp.where(ve > 0, ve, 0.0) * fex(i_n)
+
+
 class _ACExciter(AbstractController):
     """What the AC alternator-rectifier exciters share: the exciter, its field
     demand VFE, the rectifier and the saturation. Subclasses give the regulator
@@ -129,18 +148,15 @@ class _ACExciter(AbstractController):
 
     def se_ve(self, ve):
         """SE(VE) VE (pu): the exciter's saturation, PSS/E's quadratic curve."""
-        A, B = saturation_coefficients(self.E1, self.SE1, self.E2, self.SE2)
-        return B * jnp.maximum(ve - A, 0.0) ** 2
+        return ac_se_ve(self, ve)
 
     def vfe(self, ve, ifd):
         """VFE = KD XadIfd + KE VE + SE(VE) VE (pu): the exciter field demand."""
-        return self.KD * ifd + self.KE * ve + self.se_ve(ve)
+        return ac_vfe(self, ve, ifd)
 
     def efd(self, ve, ifd):
         """Efd = VE FEX(KC XadIfd / VE) (pu)."""
-        safe = jnp.where(ve > 0, ve, 1.0)
-        i_n = jnp.where(ve > 0, self.KC * ifd / safe, 2.0)
-        return jnp.where(ve > 0, ve, 0.0) * fex(i_n)
+        return ac_efd(self, ve, ifd)
 
     def init(self, y0, meas):
         ifd = meas["XadIfd"]
