@@ -342,7 +342,7 @@ def test_skip_unsupported_drops_the_records_with_one_warning(tmp_path, capsys):
 
 @pytest.mark.parametrize("suffix", [".csv", ".mat", ".cfg"])
 def test_simulate_a_case_writes_the_format_its_out_suffix_names(
-    tmp_path, suffix, capsys
+    tmp_path, suffix, capsys, monkeypatch
 ):
     """`--out run.csv` is a CSV table (it was an npz under a .csv name), `.mat`
     MATLAB, `.cfg` COMTRADE with its .dat; devices by PSS/E bus number and
@@ -350,6 +350,12 @@ def test_simulate_a_case_writes_the_format_its_out_suffix_names(
     out = tmp_path / f"run{suffix}"
     argv = ["simulate", "--case", "smib-gencls", "--fault-bus", "2"]
     argv += ["--fault-time", "0.2", "--clear-time", "0.3", "--t-end", "2"]
+    # traced, not from a stored program nor this process's (which need no compile,
+    # and no line)
+    from smibjax.cli import _exported
+
+    monkeypatch.setenv("SMIBJAX_EXPORTED", "0")
+    monkeypatch.setattr(_exported, "_GRID", None)
     assert main([*argv, "--out", str(out)]) == 0
     err = capsys.readouterr().err
     # the phase line before the compile (issue 50: no silent wait)

@@ -33,6 +33,7 @@ from .loop import (
     Case,
     Operating,
     evaluate,
+    has_renewables,
     network_residual,
     vector_field,
 )
@@ -211,7 +212,9 @@ def _record(case, op, mats, t_sw, ts, ys, stopped, t_last, sol, y_last):
     meas, vbus = jax.lax.fori_loop(0, n_stage, stage_pass, acc0)
     nan = jnp.where(valid, 0.0, jnp.nan)[:, None]
     pick = {k: meas[k] + nan for k in ("delta", "omega", "Efd", "Pm", "Pe", "Vt", "Vs")}
-    ibr = {k: meas[k] + nan for k in IBR_MEASUREMENTS if k in meas}  # issue 47
+    ibr = {}  # issue 47: the renewables' signals, none without renewables
+    if has_renewables(case):
+        ibr = {k: meas[k] + nan for k in IBR_MEASUREMENTS if k in meas}
     return dict(
         ts=ts,
         delta=pick["delta"],
