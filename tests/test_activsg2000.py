@@ -33,11 +33,12 @@ def test_the_files_read_with_their_devices():
     assert (raw.version, raw.sbase, raw.basfrq) == (33, 100.0, 60.0)
     assert len(raw.buses) == 2000 and len(raw.generators) == 544
     assert sum(g["STAT"] != 0 for g in raw.generators) == 432
-    assert set(unsupported_models(dyr_path)) <= EXC2
-    with pytest.warns(UserWarning, match="not supported; their records are skipped"):
-        recs = read_dyr(dyr_path, skip_unsupported=True)
+    # every record is read (strictly: the exciters ESST4B, EXPIC1, EXAC2, ... too)
+    assert set(unsupported_models(dyr_path)) == set()
+    recs = read_dyr(dyr_path)
     n = collections.Counter(r.model for r in recs)
     assert (n["GENROU"], n["GENSAL"], n["IEEEST"]) == (410, 25, 434)
+    assert (n["ESST4B"], n["EXPIC1"], n["EXAC2"], n["ESAC6A"]) == (278, 61, 38, 7)
     assert (n["GGOV1"], n["IEEEG1"], n["HYGOV"]) == (367, 43, 25)
     g = recs[[r.model for r in recs].index("GGOV1")]
     assert (g.bus, g.params["Rselect"], g.params["Trate"]) == (1048, 1.0, 390.24)
