@@ -20,7 +20,6 @@ from smibjax.grid.case import CaseError, build_case, case_files
 from smibjax.grid.psse import read_dyr, read_raw, to_system, unsupported_models
 
 # the exciters of ACTIVSg2000 that smibjax does not have yet (the exc2 branch)
-EXC2 = {"ESST4B", "EXPIC1", "EXAC2", "ESAC6A", "EXAC1", "ESAC1A"}
 LARGE = pytest.mark.skipif(
     os.environ.get("SMIBJAX_LARGE_CASES") != "1",
     reason="a 2,000-bus run: set SMIBJAX_LARGE_CASES=1",
