@@ -53,8 +53,8 @@ from ._blocks import (
     regulated,
     require_at_rest,
 )
-from .base import AbstractController, f64, i64
-from .exac1 import ac_efd, ac_se_ve, ac_vfe, exciter_saturation_rule, ve_at_rest
+from .base import f64, i64
+from .exac1 import ACField, exciter_saturation_rule, ve_at_rest
 
 __all__ = ["ESAC6A", "leadlag_nonwindup"]
 
@@ -71,7 +71,7 @@ def leadlag_nonwindup(x, u, K, T_lead, T_lag, lo, hi):
     return jnp.clip(raw, lo, hi), jnp.where(on & ~pinned, f, 0.0)
 
 
-class ESAC6A(AbstractController):
+class ESAC6A(ACField):
     gen: np.ndarray = eqx.field(converter=i64)
     TR: np.ndarray = eqx.field(converter=f64)  # sensing time constant (s)
     KA: np.ndarray = eqx.field(converter=f64)  # regulator gain (pu/pu)
@@ -120,18 +120,6 @@ class ESAC6A(AbstractController):
     @classmethod
     def from_params(cls, gen_positions, params):
         return build_group(cls, gen_positions, params, cls.con_names)
-
-    def se_ve(self, ve):
-        """SE(VE) VE (pu): PSS/E's quadratic exciter saturation."""
-        return ac_se_ve(self, ve)
-
-    def vfe(self, ve, ifd):
-        """VFE = KD XadIfd + KE VE + SE(VE) VE (pu)."""
-        return ac_vfe(self, ve, ifd)
-
-    def efd(self, ve, ifd):
-        """Efd = VE FEX(KC XadIfd / VE) (pu)."""
-        return ac_efd(self, ve, ifd)
 
     def _vh(self, xh, vfe):
         """(VH, dx_h/dt): the field current limiter."""

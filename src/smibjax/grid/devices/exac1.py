@@ -117,7 +117,24 @@ def ac_efd(dev, ve, ifd):
     return jnp.where(ve > 0, ve, 0.0) * fex(i_n)
 
 
-class _ACExciter(AbstractController):
+class ACField(AbstractController):
+    """What every AC exciter's rectified output is made of (`ac_se_ve`, `ac_vfe`,
+    `ac_efd`), for the models whose fields include E1, SE1, E2, SE2, KD, KE, KC."""
+
+    def se_ve(self, ve):
+        """SE(VE) VE (pu): the exciter's saturation, PSS/E's quadratic curve."""
+        return ac_se_ve(self, ve)
+
+    def vfe(self, ve, ifd):
+        """VFE = KD XadIfd + KE VE + SE(VE) VE (pu): the exciter field demand."""
+        return ac_vfe(self, ve, ifd)
+
+    def efd(self, ve, ifd):
+        """Efd = VE FEX(KC XadIfd / VE) (pu)."""
+        return ac_efd(self, ve, ifd)
+
+
+class _ACExciter(ACField):
     """What the AC alternator-rectifier exciters share: the exciter, its field
     demand VFE, the rectifier and the saturation. Subclasses give the regulator
     (`_regulator`: VR from its state, its input and VFE) and its state at rest
@@ -145,18 +162,6 @@ class _ACExciter(AbstractController):
             ),
             exciter_saturation_rule(),
         ]
-
-    def se_ve(self, ve):
-        """SE(VE) VE (pu): the exciter's saturation, PSS/E's quadratic curve."""
-        return ac_se_ve(self, ve)
-
-    def vfe(self, ve, ifd):
-        """VFE = KD XadIfd + KE VE + SE(VE) VE (pu): the exciter field demand."""
-        return ac_vfe(self, ve, ifd)
-
-    def efd(self, ve, ifd):
-        """Efd = VE FEX(KC XadIfd / VE) (pu)."""
-        return ac_efd(self, ve, ifd)
 
     def init(self, y0, meas):
         ifd = meas["XadIfd"]
